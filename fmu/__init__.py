@@ -1,0 +1,1 @@
+"""FMU export (biso_cosim.fmu)."""
