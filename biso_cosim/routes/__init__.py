@@ -1,1 +1,39 @@
-"""placeholder"""
+"""Routes: the library that ships with the package, and route files of the user's own.
+
+``load_route("loop600")`` loads a library route by name; ``load_route("my/route.toml")``
+loads a file (format in :mod:`biso_cosim.routes.route`). ``route_names()`` lists the library.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path as FilePath
+
+from biso_cosim.routes.route import DrivingLimits, Route, Site, Stop, Waypoint, parse_route, read_route_file
+
+__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "load_route", "route_names", "parse_route",
+           "read_route_file"]
+
+_LIBRARY = resources.files("biso_cosim.routes").joinpath("library")
+
+
+def route_names() -> list[str]:
+    """Names of the routes in the library, sorted."""
+    return sorted(p.name[:-5] for p in _LIBRARY.iterdir() if p.name.endswith(".toml"))
+
+
+def load_route(name_or_path: str | FilePath | Route) -> Route:
+    """A library route by name, or a route file by path (anything ending in .toml)."""
+    if isinstance(name_or_path, Route):
+        return name_or_path
+    text = str(name_or_path)
+    if text.endswith(".toml") or "/" in text or "\\" in text:
+        path = FilePath(text)
+        if not path.is_file():
+            raise FileNotFoundError(f"route file {text!r} does not exist")
+        return read_route_file(path)
+    names = route_names()
+    if text not in names:
+        raise ValueError(f"unknown route {text!r}; known routes: {', '.join(names)} (or give a path to a .toml file)")
+    with resources.as_file(_LIBRARY.joinpath(f"{text}.toml")) as path:
+        return read_route_file(path)

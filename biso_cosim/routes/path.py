@@ -1,0 +1,192 @@
+"""Dense paths from waypoints, and the speed profile a driver follows along them.
+
+A route's waypoints are the corners of a polyline; a corner with ``radius_m > 0`` is
+rounded by a circular fillet tangent to both legs (the legs are shortened by the tangent
+length ``r·tan(Δ/2)`` for a turn of Δ). The result is sampled every ``spacing_m`` along its
+arc length ``s``, with heading and curvature at each sample.
+
+The free-flow speed profile ``v(s)`` is the lowest of the leg's target speed and the
+curvature limit ``sqrt(a_lat/|κ|)``, then made feasible by a forward pass (acceleration
+limit, ``v² ≤ v₀² + 2·a·Δs``) and a backward pass (deceleration limit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Path", "densify", "speed_profile"]
+
+
+@dataclass(frozen=True)
+class Path:
+    """A path sampled along its arc length (ENU metres, heading CCW from East)."""
+
+    x_m: np.ndarray
+    y_m: np.ndarray
+    s_m: np.ndarray
+    heading_rad: np.ndarray
+    curvature_per_m: np.ndarray
+    leg: np.ndarray  # index of the waypoint whose leg each sample belongs to
+    closed: bool
+
+    @property
+    def length_m(self) -> float:
+        return float(self.s_m[-1])
+
+    def __len__(self) -> int:
+        return self.x_m.shape[0]
+
+    def locate(self, x: float, y: float, hint: int, back: int = 20, ahead: int = 400) -> tuple[int, float, float]:
+        """Nearest point of the path to (x, y), searched in a window around index ``hint``.
+
+        Returns (index of the segment start, arc length s, signed cross-track error, positive
+        when the point is left of the path). The window keeps self-crossing routes (a figure
+        eight) on the branch being driven.
+        """
+        lo = max(hint - back, 0)
+        hi = min(hint + ahead, len(self) - 1)
+        xs, ys = self.x_m[lo:hi + 1], self.y_m[lo:hi + 1]
+        # project onto each segment of the window
+        dx, dy = np.diff(xs), np.diff(ys)
+        seg2 = dx * dx + dy * dy
+        t = np.clip(((x - xs[:-1]) * dx + (y - ys[:-1]) * dy) / np.where(seg2 > 0, seg2, 1.0), 0.0, 1.0)
+        px, py = xs[:-1] + t * dx, ys[:-1] + t * dy
+        d2 = (x - px) ** 2 + (y - py) ** 2
+        k = int(np.argmin(d2))
+        i = lo + k
+        s = float(self.s_m[i] + t[k] * (self.s_m[i + 1] - self.s_m[i]))
+        cross = float((dx[k] * (y - py[k]) - dy[k] * (x - px[k])) / math.sqrt(max(seg2[k], 1e-12)))
+        return i, s, cross
+
+    def index_at(self, s: float) -> int:
+        """Index of the last sample with arc length ≤ s (clamped to the path)."""
+        return int(np.clip(np.searchsorted(self.s_m, s, side="right") - 1, 0, len(self) - 1))
+
+
+def _corner(prev_xy, corner_xy, next_xy):
+    """Turn angle Δ (signed, left positive) and unit directions of the two legs at a corner."""
+    a = np.subtract(corner_xy, prev_xy)
+    b = np.subtract(next_xy, corner_xy)
+    ua = a / np.linalg.norm(a)
+    ub = b / np.linalg.norm(b)
+    turn = math.atan2(ua[0] * ub[1] - ua[1] * ub[0], float(ua @ ub))
+    return turn, ua, ub
+
+
+def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float = 0.25,
+            names: list[str] | None = None) -> Path:
+    """Sample the rounded polyline through ``xy`` (n, 2) with corner fillets ``radius_m`` (n,).
+
+    For a closed route the last leg returns to the first waypoint, which must not be
+    rounded (the route starts and ends there). Raises ValueError naming the waypoint when
+    two fillets overlap on a leg or a leg has zero length.
+    """
+    n = xy.shape[0]
+    label = names or [f"waypoint[{i}]" for i in range(n)]
+    nodes = np.vstack([xy, xy[:1]]) if closed else xy
+    nlegs = nodes.shape[0] - 1
+    lengths = np.linalg.norm(np.diff(nodes, axis=0), axis=1)
+    for i, length in enumerate(lengths):
+        if length == 0.0:
+            raise ValueError(f"{label[i]} and the next waypoint coincide: a leg must have a length")
+    # tangent length of each interior corner (corner i joins leg i-1 and leg i)
+    tangent = np.zeros(nodes.shape[0])
+    turns = np.zeros(nodes.shape[0])
+    for i in range(1, nlegs):
+        if radius_m[i] > 0.0:
+            turn, _, _ = _corner(nodes[i - 1], nodes[i], nodes[i + 1])
+            if abs(turn) > math.radians(179.0):
+                raise ValueError(f"{label[i]}: a corner that turns back on itself cannot be rounded")
+            turns[i] = turn
+            tangent[i] = radius_m[i] * math.tan(0.5 * abs(turn))
+    for i in range(nlegs):
+        if tangent[i] + tangent[i + 1] > lengths[i] + 1e-9:
+            raise ValueError(
+                f"{label[i % n]}: the corner fillets at both ends of its leg need "
+                f"{tangent[i] + tangent[i + 1]:.1f} m but the leg is {lengths[i]:.1f} m long; "
+                "reduce radius_m or move the waypoints apart"
+            )
+    xs, ys, hs, ks, legs = [], [], [], [], []
+
+    def emit_line(p0, p1, leg):
+        length = float(np.linalg.norm(p1 - p0))
+        if length < 1e-6:  # a fillet takes the whole leg (up to rounding)
+            return
+        m = max(int(math.ceil(length / spacing_m)), 1)
+        t = np.arange(m) / m
+        heading = math.atan2(p1[1] - p0[1], p1[0] - p0[0])
+        xs.append(p0[0] + t * (p1[0] - p0[0]))
+        ys.append(p0[1] + t * (p1[1] - p0[1]))
+        hs.append(np.full(m, heading))
+        ks.append(np.zeros(m))
+        legs.append(np.full(m, leg))
+
+    def emit_arc(start, heading0, radius, turn, leg):
+        arc = radius * abs(turn)
+        m = max(int(math.ceil(arc / spacing_m)), 1)
+        sign = 1.0 if turn > 0 else -1.0
+        # centre to the left (turn > 0) or right of the heading
+        cx = start[0] - sign * radius * math.sin(heading0)
+        cy = start[1] + sign * radius * math.cos(heading0)
+        phi = heading0 + turn * np.arange(m) / m
+        xs.append(cx + sign * radius * np.sin(phi))
+        ys.append(cy - sign * radius * np.cos(phi))
+        hs.append(phi)
+        ks.append(np.full(m, sign / radius))
+        legs.append(np.full(m, leg))
+
+    for i in range(nlegs):
+        p0, p1 = nodes[i], nodes[i + 1]
+        u = (p1 - p0) / lengths[i]
+        a = p0 + tangent[i] * u
+        b = p1 - tangent[i + 1] * u
+        emit_line(a, b, i % n)
+        if tangent[i + 1] > 0.0:
+            emit_arc(b, math.atan2(u[1], u[0]), radius_m[i + 1], turns[i + 1], (i + 1) % n)
+    end = nodes[-1]
+    xs.append(np.array([end[0]]))
+    ys.append(np.array([end[1]]))
+    hs.append(np.array([hs[-1][-1]]))
+    ks.append(np.array([0.0]))
+    legs.append(np.array([legs[-1][-1]]))
+    x = np.concatenate(xs)
+    y = np.concatenate(ys)
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    return Path(x_m=x, y_m=y, s_m=s, heading_rad=np.unwrap(np.concatenate(hs)),
+                curvature_per_m=np.concatenate(ks), leg=np.concatenate(legs).astype(np.int64), closed=closed)
+
+
+def polyline_curvature(path_x: np.ndarray, path_y: np.ndarray, window_m: float, spacing_m: float) -> np.ndarray:
+    """Curvature of a sampled polyline from the rate of change of heading, smoothed over a window.
+
+    Used for routes given as dense points (imported tracks, sharp corners) where the curvature
+    is not known in closed form.
+    """
+    heading = np.unwrap(np.arctan2(np.gradient(path_y), np.gradient(path_x)))
+    ds = np.hypot(np.gradient(path_x), np.gradient(path_y))
+    kappa = np.gradient(heading) / np.maximum(ds, 1e-9)
+    width = max(int(round(window_m / spacing_m)), 1)
+    kernel = np.ones(width) / width
+    return np.convolve(kappa, kernel, mode="same")
+
+
+def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mps2: float,
+                  accel_mps2: float, decel_mps2: float, zero_at: tuple[int, ...] = ()) -> np.ndarray:
+    """Target speed at each path sample, at rest at the sample indices ``zero_at`` (stops,
+    the start, the end) and feasible for the acceleration limits in between."""
+    spacing = float(np.median(np.diff(path.s_m)))
+    kappa = np.maximum(np.abs(path.curvature_per_m),
+                       np.abs(polyline_curvature(path.x_m, path.y_m, window_m=4.0, spacing_m=spacing)))
+    v = np.asarray(leg_speed_mps, dtype=np.float64)[path.leg].copy()
+    with np.errstate(divide="ignore"):
+        v = np.minimum(v, np.sqrt(max_lateral_accel_mps2 / np.maximum(kappa, 1e-12)))
+    v[list(zero_at)] = 0.0
+    ds = np.diff(path.s_m)
+    for i in range(1, v.shape[0]):
+        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2.0 * accel_mps2 * ds[i - 1]))
+    for i in range(v.shape[0] - 2, -1, -1):
+        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2.0 * decel_mps2 * ds[i]))
+    return v

@@ -1,0 +1,344 @@
+"""Routes: waypoints, a speed profile, the terrain and the site, read from a TOML file.
+
+Route file format (version 1; every length in metres in the route's local ENU frame,
+whose origin is the site's latitude and longitude; unknown keys are errors)::
+
+    format = 1                       # optional
+    name = "figure8"                 # required
+    description = "one line"         # required: what the route is
+    excites = "one line"             # optional: what it excites (turns, grades, bank...)
+    closed = true                    # required: the route ends where it starts
+    laps = 1                         # optional, closed routes only: drive the loop N times
+
+    [driving]                        # optional; the defaults are shown
+    default_speed_mps = 10.0         # leg speed where a waypoint gives none
+    max_lateral_accel_mps2 = 2.5     # corner speed limit sqrt(a/|curvature|)
+    accel_mps2 = 1.2                 # acceleration limit of the speed profile
+    decel_mps2 = 2.0                 # deceleration limit
+    start_wait_s = 5.0               # standing still before driving off (initial alignment)
+
+    [site]                           # optional; the defaults are shown (Saratov, the
+    lat_deg = 51.53                  # Aleshkin et al. car test)
+    lon_deg = 46.03
+    alt_m = 50.0
+    date = 2024-05-01                # TOML date, for the Earth's magnetic field
+
+    [[waypoint]]                     # two or more
+    x_m = 0.0                        # required
+    y_m = 0.0                        # required
+    speed_mps = 12.0                 # optional: target on the leg from here to the next waypoint
+    radius_m = 0.0                   # optional: fillet radius of the corner at this waypoint
+    stop_s = 0.0                     # optional: stop here for this long (traffic light)
+
+    [terrain]                        # optional: flat ground if absent
+    resolution_m = 0.5               # optional: grid of the height-field patches
+    [[terrain.feature]]              # see biso_cosim.vehicle.terrain for the types
+    type = "hill"
+    x_m = 100.0
+    y_m = 20.0
+    radius_m = 60.0
+    height_m = 3.0
+
+The first waypoint of a closed route must not be rounded: the route starts there at rest
+and ends there at rest, heading along the first leg.
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import tomllib
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path as FilePath
+
+import numpy as np
+
+from biso_cosim.routes.path import Path, densify, speed_profile
+from biso_cosim.vehicle.terrain import Terrain
+
+__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "parse_route", "read_route_file"]
+
+SPACING_M = 0.25
+"""Spacing of the dense path samples."""
+
+# A closed route must end within this distance of its start (the closing leg is implicit,
+# so only an explicit duplicate of the first waypoint at the end can break this).
+_CLOSURE_TOLERANCE_M = 1.0
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    x_m: float
+    y_m: float
+    speed_mps: float | None = None
+    radius_m: float = 0.0
+    stop_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class DrivingLimits:
+    default_speed_mps: float = 10.0
+    max_lateral_accel_mps2: float = 2.5
+    accel_mps2: float = 1.2
+    decel_mps2: float = 2.0
+    start_wait_s: float = 5.0
+
+
+@dataclass(frozen=True)
+class Site:
+    """Where the route's local ENU origin lies on Earth (for the magnetic field and GNSS)."""
+
+    lat_deg: float = 51.53
+    lon_deg: float = 46.03
+    alt_m: float = 50.0
+    date: datetime.date = datetime.date(2024, 5, 1)
+
+
+@dataclass(frozen=True)
+class Stop:
+    """A halt at arc length ``s_m`` of the path (sample ``index``) for ``dwell_s`` seconds."""
+
+    index: int
+    s_m: float
+    dwell_s: float
+
+
+@dataclass(frozen=True)
+class Route:
+    name: str
+    description: str
+    closed: bool
+    waypoints: tuple[Waypoint, ...]
+    excites: str = ""
+    laps: int = 1
+    driving: DrivingLimits = field(default_factory=DrivingLimits)
+    site: Site = field(default_factory=Site)
+    terrain: Terrain = field(default_factory=Terrain)
+    source: str = ""
+
+    @cached_property
+    def path(self) -> Path:
+        """The dense path (all laps)."""
+        xy = np.array([[w.x_m, w.y_m] for w in self.waypoints])
+        radius = np.array([w.radius_m for w in self.waypoints])
+        names = [f"waypoint[{i}]" for i in range(len(self.waypoints))]
+        if self.laps > 1:
+            n = len(self.waypoints)
+            xy = np.tile(xy, (self.laps, 1))
+            radius = np.tile(radius, self.laps)
+            # the start waypoint is passed straight through between laps
+            names = [names[i % n] for i in range(xy.shape[0])]
+        return densify(xy, radius, self.closed, SPACING_M, names)
+
+    @cached_property
+    def _leg_speed(self) -> np.ndarray:
+        default = self.driving.default_speed_mps
+        speeds = np.array([default if w.speed_mps is None else w.speed_mps for w in self.waypoints])
+        return np.tile(speeds, self.laps)
+
+    @cached_property
+    def stops(self) -> tuple[Stop, ...]:
+        """Intermediate stops in driving order, then the final stop (dwell ∞) at the end."""
+        path = self.path
+        n = len(self.waypoints)
+        out = []
+        for leg_index in range(n * self.laps):
+            wp = self.waypoints[leg_index % n]
+            if wp.stop_s > 0.0 and not (leg_index == 0):
+                # the leg of waypoint k starts at waypoint k: its first sample
+                index = int(np.flatnonzero(path.leg == leg_index)[0])
+                out.append(Stop(index=index, s_m=float(path.s_m[index]), dwell_s=wp.stop_s))
+        last = len(path) - 1
+        out.append(Stop(index=last, s_m=float(path.s_m[last]), dwell_s=math.inf))
+        return tuple(out)
+
+    @cached_property
+    def speed_free_mps(self) -> np.ndarray:
+        """Target speed along the path ignoring stops: the driver adds the stops (the end of the
+        route is one) and the ramp from rest."""
+        d = self.driving
+        return speed_profile(self.path, self._leg_speed, max_lateral_accel_mps2=d.max_lateral_accel_mps2,
+                             accel_mps2=d.accel_mps2, decel_mps2=d.decel_mps2)
+
+    @cached_property
+    def speed_with_stops_mps(self) -> np.ndarray:
+        """Target speed along the path, at rest at every stop."""
+        d = self.driving
+        return speed_profile(self.path, self._leg_speed, max_lateral_accel_mps2=d.max_lateral_accel_mps2,
+                             accel_mps2=d.accel_mps2, decel_mps2=d.decel_mps2,
+                             zero_at=(0, *(s.index for s in self.stops)))
+
+    @cached_property
+    def nominal_duration_s(self) -> float:
+        """Time to drive the route along its speed profile, stops included."""
+        v = self.speed_with_stops_mps
+        ds = np.diff(self.path.s_m)
+        mean = 0.5 * (v[:-1] + v[1:])
+        drive = float(np.sum(ds / np.maximum(mean, 1e-3)))
+        return self.driving.start_wait_s + drive + sum(s.dwell_s for s in self.stops[:-1])
+
+    @property
+    def start_xy_yaw(self) -> tuple[float, float, float]:
+        """Start position (m) and yaw (rad, CCW from East) of the route."""
+        p = self.path
+        return float(p.x_m[0]), float(p.y_m[0]), float(p.heading_rad[0])
+
+    def summary(self) -> dict:
+        return {
+            "name": self.name,
+            "description": self.description,
+            "excites": self.excites,
+            "closed": self.closed,
+            "laps": self.laps,
+            "length_m": round(self.path.length_m, 1),
+            "nominal_duration_s": round(self.nominal_duration_s, 1),
+            "stops": len(self.stops) - 1,
+            "terrain_features": len(self.terrain.features),
+        }
+
+
+# --------------------------------------------------------------------------------------
+# Parsing
+# --------------------------------------------------------------------------------------
+
+_TOP_KEYS = {"format", "name", "description", "excites", "closed", "laps", "driving", "site", "waypoint", "terrain"}
+
+
+def _number(value, where: str, *, minimum: float | None = None, strict: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where} must be a finite number, got {value!r}")
+    if minimum is not None and (value < minimum or (strict and value == minimum)):
+        relation = ">" if strict else ">="
+        raise ValueError(f"{where} must be {relation} {minimum}, got {value!r}")
+    return float(value)
+
+
+def _table(data: dict, key: str, cls, where: str, checks: dict) -> object:
+    table = data.get(key, {})
+    if not isinstance(table, dict):
+        raise ValueError(f"{where}: [{key}] must be a table")
+    known = set(cls.__dataclass_fields__)
+    unknown = set(table) - known
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) in [{key}]: {sorted(unknown)}; expected {sorted(known)}")
+    values = {}
+    for name, value in table.items():
+        check = checks.get(name)
+        values[name] = check(value, f"{where}: {key}.{name}") if check else value
+    return cls(**values)
+
+
+def _date(value, where: str) -> datetime.date:
+    if isinstance(value, datetime.datetime):
+        return value.date()
+    if isinstance(value, datetime.date):
+        return value
+    raise ValueError(f"{where} must be a TOML date like 2024-05-01, got {value!r}")
+
+
+def parse_route(data: dict, source: str = "<route>") -> Route:
+    """Build a Route from the parsed TOML ``data``; errors name the file and the field."""
+    where = source
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {sorted(unknown)}; expected {sorted(_TOP_KEYS)}")
+    if data.get("format", 1) != 1:
+        raise ValueError(f"{where}: format must be 1, got {data.get('format')!r}")
+    for key in ("name", "description", "closed"):
+        if key not in data:
+            raise ValueError(f"{where}: missing required key {key!r}")
+    for key in ("name", "description", "excites"):
+        if key in data and not isinstance(data[key], str):
+            raise ValueError(f"{where}: {key} must be a string, got {data[key]!r}")
+    if not isinstance(data["closed"], bool):
+        raise ValueError(f"{where}: closed must be true or false, got {data['closed']!r}")
+    closed = data["closed"]
+    laps = data.get("laps", 1)
+    if isinstance(laps, bool) or not isinstance(laps, int) or laps < 1:
+        raise ValueError(f"{where}: laps must be an integer >= 1, got {laps!r}")
+    if laps > 1 and not closed:
+        raise ValueError(f"{where}: laps > 1 needs a closed route")
+
+    positive = lambda v, w: _number(v, w, minimum=0.0, strict=True)  # noqa: E731
+    driving = _table(data, "driving", DrivingLimits, where, {
+        "default_speed_mps": positive, "max_lateral_accel_mps2": positive,
+        "accel_mps2": positive, "decel_mps2": positive,
+        "start_wait_s": lambda v, w: _number(v, w, minimum=0.0),
+    })
+    site = _table(data, "site", Site, where, {
+        "lat_deg": lambda v, w: _latitude(v, w), "lon_deg": lambda v, w: _longitude(v, w),
+        "alt_m": lambda v, w: _number(v, w), "date": _date,
+    })
+
+    raw_waypoints = data.get("waypoint")
+    if not isinstance(raw_waypoints, list) or len(raw_waypoints) < 2:
+        raise ValueError(f"{where}: a route needs at least two [[waypoint]] tables")
+    waypoints = []
+    known = set(Waypoint.__dataclass_fields__)
+    for i, wp in enumerate(raw_waypoints):
+        label = f"{where}: waypoint[{i}]"
+        unknown = set(wp) - known
+        if unknown:
+            raise ValueError(f"{label}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
+        for key in ("x_m", "y_m"):
+            if key not in wp:
+                raise ValueError(f"{label}: missing {key}")
+        waypoints.append(Waypoint(
+            x_m=_number(wp["x_m"], f"{label}.x_m"),
+            y_m=_number(wp["y_m"], f"{label}.y_m"),
+            speed_mps=None if "speed_mps" not in wp else _number(wp["speed_mps"], f"{label}.speed_mps", minimum=0.0, strict=True),
+            radius_m=_number(wp.get("radius_m", 0.0), f"{label}.radius_m", minimum=0.0),
+            stop_s=_number(wp.get("stop_s", 0.0), f"{label}.stop_s", minimum=0.0),
+        ))
+    if closed:
+        if waypoints[0].radius_m > 0.0:
+            raise ValueError(f"{where}: waypoint[0].radius_m must be 0 on a closed route (it starts and ends there)")
+        first, last = waypoints[0], waypoints[-1]
+        if math.hypot(first.x_m - last.x_m, first.y_m - last.y_m) < _CLOSURE_TOLERANCE_M:
+            raise ValueError(f"{where}: a closed route returns to waypoint[0] by itself; "
+                             f"remove the last waypoint, which repeats the first")
+    else:
+        for end in (0, len(waypoints) - 1):
+            if waypoints[end].radius_m > 0.0:
+                raise ValueError(f"{where}: waypoint[{end}].radius_m must be 0 at the ends of an open route")
+
+    terrain_data = data.get("terrain", {})
+    if not isinstance(terrain_data, dict):
+        raise ValueError(f"{where}: [terrain] must be a table")
+    unknown = set(terrain_data) - {"resolution_m", "feature"}
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) in [terrain]: {sorted(unknown)}; expected ['feature', 'resolution_m']")
+    resolution = _number(terrain_data.get("resolution_m", 0.5), f"{where}: terrain.resolution_m", minimum=0.0, strict=True)
+    terrain = Terrain.from_dict(terrain_data.get("feature", []), resolution_m=resolution, where=f"{where}: terrain.feature")
+
+    route = Route(name=data["name"], description=data["description"], excites=data.get("excites", ""),
+                  closed=closed, laps=laps, waypoints=tuple(waypoints), driving=driving, site=site,
+                  terrain=terrain, source=source)
+    route.path  # noqa: B018 -- build now so that geometry errors surface at load time
+    return route
+
+
+def _latitude(value, where):
+    v = _number(value, where)
+    if not -90.0 <= v <= 90.0:
+        raise ValueError(f"{where} must be in [-90, 90] degrees, got {v}")
+    return v
+
+
+def _longitude(value, where):
+    v = _number(value, where)
+    if not -180.0 <= v <= 360.0:
+        raise ValueError(f"{where} must be in [-180, 360] degrees, got {v}")
+    return v
+
+
+def read_route_file(path: str | FilePath) -> Route:
+    """Read and validate a route file."""
+    path = FilePath(path)
+    try:
+        with path.open("rb") as handle:
+            data = tomllib.load(handle)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    return parse_route(data, source=str(path))
