@@ -12,7 +12,6 @@ time stamps, so every estimate is compared with the attitude at the instant it r
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -24,6 +23,7 @@ from biso_cosim.estimators import Estimate, make_estimator
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
+from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.sim import Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS"]
@@ -146,9 +146,9 @@ class CoSimulation:
         if n == 0:
             return
         row = self.vehicle.current_truth()
-        tile = {k: np.repeat(getattr(row, k), n, axis=0) for k in ("omega_b", "specific_force_b", "q_wb", "pos_w")}
-        mag_b = self.magnetic.field_b(tile["q_wb"], tile["pos_w"])
-        samples = self.imu.simulate(tile["omega_b"], tile["specific_force_b"], mag_b)
+        parked = Truth(np.repeat(row.packed, n, axis=0))
+        mag_b = self.magnetic.field_b(parked.q_wb, parked.pos_w)
+        samples = self.imu.simulate(parked.omega_b, parked.specific_force_b, mag_b)
         self.gyro_offset_b = samples.gyro_b.mean(axis=0)
 
     def _reset_logs(self) -> None:
@@ -161,16 +161,24 @@ class CoSimulation:
     def done(self) -> bool:
         return self._chunks_done >= self.n_chunks
 
-    def step(self) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+    def step(self, command: DriverCommand | None = None) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """One control period: driver, physics, sensor, estimators. Returns the sensor samples
-        of the period, the truth at their time stamps, and each estimator's output."""
+        of the period, the truth at their time stamps, and each estimator's output.
+
+        With ``command`` the car is driven by it for this period instead of by the scripted
+        driver (for agents that drive); the driver still tracks progress along the route.
+        """
         vehicle = self.vehicle
-        vehicle.drive()
+        if command is None:
+            vehicle.drive()
+        else:
+            vehicle.observe_route()
+            vehicle.apply(command)
         truth = vehicle.step()
         mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
         samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b)
-        samples = dataclasses.replace(samples, t_s=samples.t_s - self._imu_t0_s,
-                                      gyro_b=samples.gyro_b - self.gyro_offset_b)
+        samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
+        samples.gyro_b -= self.gyro_offset_b
         at_samples = self._truth_at(samples.t_s, truth)
         outputs = {key: est.update(samples.gyro_b, samples.accel_b, samples.mag_b)
                    for key, est in self.estimators.items()}
@@ -223,35 +231,11 @@ class CoSimulation:
 
     # ------------------------------------------------------------------ truth at sample times
     def _truth_at(self, t_s: np.ndarray, chunk: Truth) -> Truth:
-        """Truth at arbitrary times inside [previous chunk's last row, this chunk's last row]:
-        linear interpolation of vectors, normalised linear interpolation of quaternions (the
-        rows are 1 ms apart, so nlerp equals slerp to well below 1e-9 rad)."""
-        prev = self._last_truth_row
-        self._last_truth_row = Truth(**{k: getattr(chunk, k)[-1:] for k in Truth.__dataclass_fields__})
-        if t_s.shape[0] == 0:
-            return Truth(**{k: getattr(chunk, k)[:0] for k in Truth.__dataclass_fields__})
-        rows = chunk if prev is None else Truth.concatenate([prev, chunk])
-        rate = self.vehicle.physics_rate_hz
-        pos = (t_s - rows.t_s[0]) * rate
-        lo = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, len(rows) - 1)
-        frac = np.clip(pos - lo, 0.0, 1.0)
-        exact = frac < 1e-9
-        hi = np.minimum(lo + 1, len(rows) - 1)
-        out = {}
-        for name in Truth.__dataclass_fields__:
-            a = getattr(rows, name)
-            if name == "t_s":
-                out[name] = np.asarray(t_s, dtype=np.float64)
-                continue
-            f = frac.reshape((-1,) + (1,) * (a.ndim - 1))
-            b = a[hi]
-            if name == "q_wb":  # shortest path between neighbours
-                b = np.where(np.sum(a[lo] * b, axis=1, keepdims=True) < 0.0, -b, b)
-            value = np.where(exact.reshape(f.shape), a[lo], (1.0 - f) * a[lo] + f * b)
-            if name == "q_wb":
-                value = value / np.linalg.norm(value, axis=1, keepdims=True)
-            out[name] = value
-        return Truth(**out)
+        """Truth at the sensor's time stamps, which lie between the previous chunk's last row
+        and this chunk's last row."""
+        rows = chunk if self._last_truth_row is None else Truth.concatenate([self._last_truth_row, chunk])
+        self._last_truth_row = chunk[-1:]
+        return rows.at(t_s, self.vehicle.physics_rate_hz)
 
 
 @dataclass

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from biso_cosim.routes._kernels import _locate
+
 __all__ = ["Path", "densify", "speed_profile"]
 
 
@@ -39,31 +41,22 @@ class Path:
     def __len__(self) -> int:
         return self.x_m.shape[0]
 
-    def locate(self, x: float, y: float, hint: int, back: int = 20, ahead: int = 400) -> tuple[int, float, float]:
+    def locate(self, x: float, y: float, hint: int, back: int = 8, ahead: int = 80) -> tuple[int, float, float]:
         """Nearest point of the path to (x, y), searched in a window around index ``hint``.
 
         Returns (index of the segment start, arc length s, signed cross-track error, positive
-        when the point is left of the path). The window keeps self-crossing routes (a figure
-        eight) on the branch being driven.
+        when the point is left of the path). The window (2 m back, 20 m ahead at the default
+        spacing) keeps self-crossing routes (a figure eight) on the branch being driven.
         """
         lo = max(hint - back, 0)
         hi = min(hint + ahead, len(self) - 1)
-        xs, ys = self.x_m[lo:hi + 1], self.y_m[lo:hi + 1]
-        # project onto each segment of the window
-        dx, dy = np.diff(xs), np.diff(ys)
-        seg2 = dx * dx + dy * dy
-        t = np.clip(((x - xs[:-1]) * dx + (y - ys[:-1]) * dy) / np.where(seg2 > 0, seg2, 1.0), 0.0, 1.0)
-        px, py = xs[:-1] + t * dx, ys[:-1] + t * dy
-        d2 = (x - px) ** 2 + (y - py) ** 2
-        k = int(np.argmin(d2))
-        i = lo + k
-        s = float(self.s_m[i] + t[k] * (self.s_m[i + 1] - self.s_m[i]))
-        cross = float((dx[k] * (y - py[k]) - dy[k] * (x - px[k])) / math.sqrt(max(seg2[k], 1e-12)))
-        return i, s, cross
+        i, s, cross = _locate(self.x_m, self.y_m, self.s_m, float(x), float(y), lo, hi)
+        return int(i), float(s), float(cross)
 
     def index_at(self, s: float) -> int:
         """Index of the last sample with arc length ≤ s (clamped to the path)."""
-        return int(np.clip(np.searchsorted(self.s_m, s, side="right") - 1, 0, len(self) - 1))
+        i = int(np.searchsorted(self.s_m, s, side="right")) - 1
+        return min(max(i, 0), len(self) - 1)
 
 
 def _corner(prev_xy, corner_xy, next_xy):

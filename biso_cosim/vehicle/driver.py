@@ -124,12 +124,18 @@ class RouteDriver:
         """The car has reached the end of the route and holds there."""
         return self.state.finished
 
-    def command(self, rear_axle_xy: np.ndarray, yaw_rad: float, speed_mps: float,
-                wheel_speed_rad_s: float) -> DriverCommand:
+    def track(self, rear_axle_xy) -> None:
+        """Update progress along the path and the cross-track error from the rear-axle position."""
+        st = self.state
+        st.index, st.s_m, st.cross_track_m = self.path.locate(float(rear_axle_xy[0]), float(rear_axle_xy[1]), st.index)
+
+    def command(self, rear_axle_xy, yaw_rad: float, speed_mps: float, wheel_speed_rad_s: float) -> DriverCommand:
+        """The command for the next period from the rear-axle position (x, y in ENU, m), the
+        yaw (rad, CCW from East), the forward speed (m/s) and the mean wheel spin rate (rad/s)."""
         st, p, path = self.state, self.params, self.path
         dt = self.dt_s
         x, y = float(rear_axle_xy[0]), float(rear_axle_xy[1])
-        st.index, st.s_m, st.cross_track_m = path.locate(x, y, st.index)
+        self.track(rear_axle_xy)
         st.time_s += dt
         if st.time_s <= self.route.driving.start_wait_s:
             return DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)

@@ -9,12 +9,12 @@ a chunk is the truth at ``t0 + k·dt``, where ``t0`` was the simulation time bef
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from biso_cosim.frames import _q_from_euler
+from biso_cosim.vehicle._kernels import _interpolate_rows
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -26,26 +26,57 @@ __all__ = ["Truth", "VehicleSim"]
 _SETTLE_S = 3.0
 
 
-@dataclass(frozen=True)
-class Truth:
-    """True motion at the IMU site, one row per physics step (frame names as in frames.py)."""
+def _columns(index: int | slice, doc: str) -> property:
+    return property(lambda self: self.packed[:, index], doc=doc)
 
-    t_s: np.ndarray          # (n,)
-    omega_b: np.ndarray      # (n, 3) rad/s, angular rate in body axes
-    specific_force_b: np.ndarray  # (n, 3) m/s², +g up at rest
-    q_wb: np.ndarray         # (n, 4) attitude of the body (IMU site) in ENU
-    pos_w: np.ndarray        # (n, 3) m, IMU site position
-    vel_w: np.ndarray        # (n, 3) m/s, IMU site velocity
-    speed_mps: np.ndarray    # (n,) forward speed of the rear axle, body x
-    wheel_rates: np.ndarray  # (n, 4) rad/s, wheel spin rates fl, fr, rl, rr
+
+class Truth:
+    """True motion at the IMU site, one row per instant, packed in one (n, 22) array.
+
+    Columns: ``t_s``; ``omega_b`` (rad/s, body axes); ``specific_force_b`` (m/s², +g up at
+    rest); ``q_wb`` (attitude of the body, i.e. of the IMU site, in ENU); ``pos_w`` (m);
+    ``vel_w`` (m/s); ``speed_mps`` (forward speed of the rear axle); ``wheel_rates`` (rad/s,
+    wheels fl, fr, rl, rr). The attributes are views of ``packed``.
+    """
+
+    __slots__ = ("packed",)
+    WIDTH = 22
+    QUAT_COLUMN = 7
+
+    t_s = _columns(0, "time, s")
+    omega_b = _columns(slice(1, 4), "angular rate in body axes, rad/s")
+    specific_force_b = _columns(slice(4, 7), "specific force in body axes, m/s²")
+    q_wb = _columns(slice(7, 11), "attitude, body to ENU")
+    pos_w = _columns(slice(11, 14), "IMU site position, ENU, m")
+    vel_w = _columns(slice(14, 17), "IMU site velocity, ENU, m/s")
+    speed_mps = _columns(17, "forward speed of the rear axle, m/s")
+    wheel_rates = _columns(slice(18, 22), "wheel spin rates fl, fr, rl, rr, rad/s")
+
+    def __init__(self, packed: np.ndarray):
+        if packed.ndim != 2 or packed.shape[1] != self.WIDTH:
+            raise ValueError(f"packed truth must have shape (n, {self.WIDTH}), got {packed.shape}")
+        self.packed = packed
 
     def __len__(self) -> int:
-        return self.t_s.shape[0]
+        return self.packed.shape[0]
+
+    def __getitem__(self, index) -> "Truth":
+        return Truth(self.packed[index] if isinstance(index, slice) else self.packed[np.atleast_1d(index)])
 
     @staticmethod
     def concatenate(parts: list["Truth"]) -> "Truth":
-        return Truth(**{name: np.concatenate([getattr(p, name) for p in parts])
-                        for name in Truth.__dataclass_fields__})
+        if not parts:
+            return Truth(np.empty((0, Truth.WIDTH)))
+        return Truth(np.concatenate([p.packed for p in parts]))
+
+    def at(self, t_s: np.ndarray, rate_hz: float) -> "Truth":
+        """The truth at times ``t_s`` within these rows (uniform at ``rate_hz``): vectors
+        interpolated linearly, the attitude on the shorter arc (nlerp)."""
+        out = np.empty((t_s.shape[0], self.WIDTH))
+        if t_s.shape[0]:
+            _interpolate_rows(self.packed, float(self.packed[0, 0]), float(rate_hz),
+                              np.ascontiguousarray(t_s, dtype=np.float64), self.QUAT_COLUMN, out)
+        return Truth(out)
 
 
 class VehicleSim:
@@ -77,6 +108,13 @@ class VehicleSim:
             max_brake_torque_nm=params["max_brake_torque_per_wheel_nm"],
             max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params)
         self._buffer = np.empty((self.steps_per_control, self.model.nsensordata))
+        self._step_offsets = np.arange(max(self.steps_per_control, 1), dtype=np.float64)
+        ix = self.index
+        # sensordata columns of Truth's columns 1..21, in order
+        self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
+                             np.arange(ix.quat.start, ix.quat.stop), np.arange(ix.pos.start, ix.pos.stop),
+                             np.arange(ix.vel_w.start, ix.vel_w.stop), [ix.rear_axle_vel_b.start],
+                             np.arange(ix.wheel_rates.start, ix.wheel_rates.stop)]
         self.reset()
 
     # ------------------------------------------------------------------ placement
@@ -108,22 +146,35 @@ class VehicleSim:
         d.ctrl[ix.drive] = command.drive
         d.ctrl[ix.brakes] = command.brake
 
+    def _measure(self) -> tuple[list[float], float, float, float]:
+        """What the driver measures, as plain floats: rear-axle position, yaw, forward speed,
+        mean wheel spin rate (this runs once per control period)."""
+        ix = self.index
+        sd = self.data.sensordata.tolist()
+        w, x, y, z = sd[ix.quat.start:ix.quat.stop]
+        yaw = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+        axle = sd[ix.rear_axle_pos.start:ix.rear_axle_pos.stop]
+        wheels = sd[ix.wheel_rates.start:ix.wheel_rates.stop]
+        return axle, yaw, sd[ix.rear_axle_vel_b.start], sum(wheels) / len(wheels)
+
     def drive(self) -> DriverCommand:
         """Ask the driver for the next control period's command from the current state."""
-        sd, ix = self.data.sensordata, self.index
-        q = sd[ix.quat]
-        yaw = math.atan2(2.0 * (q[1] * q[2] + q[0] * q[3]), 1.0 - 2.0 * (q[2] * q[2] + q[3] * q[3]))
-        wheels = sd[ix.wheel_rates]
-        command = self.driver.command(sd[ix.rear_axle_pos], yaw, float(sd[ix.rear_axle_vel_b][0]),
-                                      float(np.mean(wheels)))
+        command = self.driver.command(*self._measure())
         self.apply(command)
         return command
+
+    def observe_route(self) -> None:
+        """Update the driver's progress and cross-track error without driving (an agent drives)."""
+        axle, _, _, _ = self._measure()
+        self.driver.track(axle)
 
     def step(self, n: int | None = None) -> Truth:
         """Advance ``n`` physics steps (default: one control period); truth of those steps."""
         m, d = self.model, self.data
         n = self.steps_per_control if n is None else n
         buf = self._buffer if n == self._buffer.shape[0] else np.empty((n, m.nsensordata))
+        if n > self._step_offsets.shape[0]:
+            self._step_offsets = np.arange(n, dtype=np.float64)
         for k in range(n):
             mujoco.mj_step(m, d)
             buf[k] = d.sensordata
@@ -136,15 +187,8 @@ class VehicleSim:
         return self._truth(self.data.sensordata[None, :].copy(), max(self.steps_done - 1, 0))
 
     def _truth(self, buf: np.ndarray, first_step: int) -> Truth:
-        ix = self.index
         n = buf.shape[0]
-        return Truth(
-            t_s=(first_step + np.arange(n)) / self.physics_rate_hz,
-            omega_b=buf[:, ix.gyro].copy(),
-            specific_force_b=buf[:, ix.accel].copy(),
-            q_wb=buf[:, ix.quat].copy(),
-            pos_w=buf[:, ix.pos].copy(),
-            vel_w=buf[:, ix.vel_w].copy(),
-            speed_mps=buf[:, ix.rear_axle_vel_b][:, 0].copy(),
-            wheel_rates=buf[:, ix.wheel_rates].copy(),
-        )
+        packed = np.empty((n, Truth.WIDTH))
+        packed[:, 0] = (first_step + self._step_offsets[:n]) / self.physics_rate_hz
+        packed[:, 1:] = buf[:, self._gather]
+        return Truth(packed)

@@ -1,0 +1,106 @@
+"""Cost of the co-simulation against bare MuJoCo stepping of the same model.
+
+For each route: the wall time of the full co-simulation (driver, physics, virtual MPU-9250,
+the estimators, logging) and of bare ``mj_step`` calls over the same number of steps with
+the same model, from the same settled start, replaying the same actuator commands (so the
+physics does the same work), in the same process; and their ratio. Also the share of each
+layer, timed separately over one run.
+
+    python benchmarks/cosim_overhead.py                 # loop600 and figure8, 120 s each
+    python benchmarks/cosim_overhead.py --routes loop600 --duration 600
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+
+from biso_cosim.cosim import CoSimulation
+from biso_cosim.routes import route_names
+
+
+def record_controls(sim: CoSimulation) -> np.ndarray:
+    """The actuator commands of each control period of a run."""
+    sim.reset()
+    controls = []
+    while not sim.done:
+        sim.step()
+        controls.append(sim.vehicle.data.ctrl.copy())
+    return np.array(controls)
+
+
+def bare_steps(sim: CoSimulation, controls: np.ndarray) -> float:
+    """Step the same model from the same start with the same commands, nothing else."""
+    vehicle = sim.vehicle
+    vehicle.reset()
+    model, data = vehicle.model, vehicle.data
+    per = vehicle.steps_per_control
+    step = mujoco.mj_step
+    start = time.perf_counter()
+    for ctrl in controls:
+        data.ctrl[:] = ctrl
+        for _ in range(per):
+            step(model, data)
+    return time.perf_counter() - start
+
+
+def layers(sim: CoSimulation) -> dict[str, float]:
+    """Wall time of each layer over one run, by timing each call of the loop."""
+    sim.reset()
+    clock = time.perf_counter
+    spent = {"driver": 0.0, "physics": 0.0, "magnetic field": 0.0, "sensor": 0.0, "estimators": 0.0, "rest": 0.0}
+    total_start = clock()
+    vehicle = sim.vehicle
+    while not sim.done:
+        t0 = clock()
+        vehicle.drive()
+        t1 = clock()
+        truth = vehicle.step()
+        t2 = clock()
+        mag = sim.magnetic.field_b(truth.q_wb, truth.pos_w)
+        t3 = clock()
+        samples = sim.imu.simulate(truth.omega_b, truth.specific_force_b, mag)
+        t4 = clock()
+        for est in sim.estimators.values():
+            est.update(samples.gyro_b, samples.accel_b, samples.mag_b)
+        t5 = clock()
+        sim._chunks_done += 1
+        spent["driver"] += t1 - t0
+        spent["physics"] += t2 - t1
+        spent["magnetic field"] += t3 - t2
+        spent["sensor"] += t4 - t3
+        spent["estimators"] += t5 - t4
+    spent["rest"] = clock() - total_start - sum(spent.values())
+    return spent
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--routes", nargs="+", default=["loop600", "figure8"], choices=route_names())
+    parser.add_argument("--duration", type=float, default=120.0, help="simulated seconds per route")
+    parser.add_argument("--repeat", type=int, default=3, help="repetitions; the best of each is kept")
+    args = parser.parse_args()
+    print(f"{'route':<10} {'steps':>8} {'cosim s':>9} {'bare s':>9} {'ratio':>7} {'µs/step':>8} {'bare µs':>8}")
+    for name in args.routes:
+        sim = CoSimulation(name, duration_s=args.duration, seed=0)
+        controls = record_controls(sim)  # also compiles the kernels and warms the caches
+        n_steps = sim.n_chunks * sim.vehicle.steps_per_control
+        best_cosim, best_bare = float("inf"), float("inf")
+        for _ in range(args.repeat):
+            sim.reset()
+            start = time.perf_counter()
+            sim.run()
+            best_cosim = min(best_cosim, time.perf_counter() - start)
+            best_bare = min(best_bare, bare_steps(sim, controls))
+        print(f"{name:<10} {n_steps:>8} {best_cosim:>9.3f} {best_bare:>9.3f} {best_cosim / best_bare:>7.3f} "
+              f"{best_cosim / n_steps * 1e6:>8.2f} {best_bare / n_steps * 1e6:>8.2f}")
+        spent = layers(sim)
+        total = sum(spent.values())
+        print("    share of the loop: " + ", ".join(f"{k} {100 * v / total:.1f} %" for k, v in spent.items()))
+
+
+if __name__ == "__main__":
+    main()
