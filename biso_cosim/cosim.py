@@ -26,7 +26,10 @@ from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironm
 from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.sim import Truth, VehicleSim
 
-__all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS"]
+__all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE"]
+
+DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
+"""A typical MPU-9250 after the usual start-up calibration (see docs/sensors.md)."""
 
 DEFAULT_ESTIMATORS = ("biso", "poisson")
 """Estimators of a run unless told otherwise: BISO and the uncorrected integration it improves on."""
@@ -38,15 +41,43 @@ _WINDOW_S = 1.0
 
 @dataclass(frozen=True)
 class EstimatorSpec:
-    """One estimator of a run: registry name, parameters, and the label it is reported under."""
+    """One estimator of a run: registry name, parameters, and the label it is reported under;
+    or a user's own estimator ``instance`` (see :class:`CoSimulation`)."""
 
     name: str
     params: Mapping[str, Any] = field(default_factory=dict)
     label: str = ""
+    instance: Any = None
 
     @property
     def key(self) -> str:
         return self.label or self.name
+
+
+class _UserEstimator:
+    """Adapts a user's estimator: ``update(gyro_b, accel_b, mag_b)`` returning (k, 4) ``q_wb``
+    or an object with ``q_wb`` (and optionally ``flags``); ``reset()`` if it has one."""
+
+    def __init__(self, instance: Any, label: str):
+        if not callable(getattr(instance, "update", None)):
+            raise ValueError(f"estimator {label!r}: a user estimator needs an update(gyro_b, accel_b, mag_b) method")
+        self.instance = instance
+        self.label = label
+
+    def reset(self) -> None:
+        reset = getattr(self.instance, "reset", None)
+        if callable(reset):
+            reset()
+
+    def update(self, gyro_b, accel_b, mag_b) -> Estimate:
+        out = self.instance.update(gyro_b, accel_b, mag_b)
+        q = np.asarray(getattr(out, "q_wb", out), dtype=np.float64)
+        k = gyro_b.shape[0]
+        if q.shape != (k, 4):
+            raise ValueError(f"estimator {self.label!r}: update() returned shape {q.shape}, expected ({k}, 4) q_wb")
+        flags = getattr(out, "flags", None)
+        flags = np.zeros(k, dtype=np.int64) if flags is None else np.asarray(flags)
+        return Estimate(q_wb=q, flags=flags)
 
 
 def _estimator_specs(estimators: Iterable[str | EstimatorSpec | tuple]) -> tuple[EstimatorSpec, ...]:
@@ -60,8 +91,12 @@ def _estimator_specs(estimators: Iterable[str | EstimatorSpec | tuple]) -> tuple
             specs.append(EstimatorSpec(item))
         elif isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and isinstance(item[1], Mapping):
             specs.append(EstimatorSpec(item[0], dict(item[1])))
+        elif callable(getattr(item, "update", None)):
+            name = getattr(item, "name", None) or type(item).__name__
+            specs.append(EstimatorSpec(str(name), instance=item))
         else:
-            raise ValueError(f"estimators: expected names, (name, params) pairs or EstimatorSpec, got {item!r}")
+            raise ValueError(f"estimators: expected names, (name, params) pairs, EstimatorSpec or objects with "
+                             f"an update(gyro_b, accel_b, mag_b) method, got {item!r}")
     if not specs:
         raise ValueError("estimators: give at least one estimator")
     keys = [s.key for s in specs]
@@ -78,20 +113,27 @@ class CoSimulation:
     route : library name, route file path, or :class:`~biso_cosim.routes.Route`.
     duration_s : simulated time; default the route's nominal duration plus 10 s at rest.
     seed : seed of the sensor's random errors (the vehicle and driver are deterministic).
-    estimators : names (``biso_cosim.estimators.estimator_names()``), ``(name, params)`` pairs
-        or :class:`EstimatorSpec`; all see the same sensor samples.
-    sensor_profile, registers, mounting : passed to :class:`biso_cosim.sensors.MPU9250`.
+    estimators : names (``biso_cosim.estimators.estimator_names()``), ``(name, params)`` pairs,
+        :class:`EstimatorSpec`, or your own estimator objects: anything with
+        ``update(gyro_b, accel_b, mag_b)`` that returns the (k, 4) ``q_wb`` of the k samples
+        it was given (or an object with ``q_wb`` and optionally ``flags``), called once per
+        control period in the loop; ``reset()`` is called on reset if it exists. All see the
+        same sensor samples (SI, body axes, at ``output_rate_hz``).
+    sensor_profile, registers, mounting : passed to :class:`biso_cosim.sensors.MPU9250`. The
+        default profile is the chip after the usual start-up calibration (residual errors);
+        ``"mpu9250"`` is the raw chip with the datasheet tolerances.
     gyro_calibration_s : before time zero the sensor is read for this long with the car at
         rest and the mean gyro reading is subtracted from every later reading, as an MPU-9250
-        driver does with the gyro offset registers at start-up (without it the ±5 °/s
-        turn-on bias of the datasheet dominates every gyro-only result). 0 disables it.
+        driver does with the gyro offset registers at start-up: use it with the raw
+        ``"mpu9250"`` profile, whose ±5 °/s turn-on bias otherwise dominates every gyro-only
+        result. 0 (the default) disables it.
     physics_rate_hz, control_rate_hz : MuJoCo step rate and driver rate (a whole multiple).
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
                  estimators: Iterable[str | EstimatorSpec | tuple] = DEFAULT_ESTIMATORS,
-                 sensor_profile: str = "mpu9250", registers: Mapping[str, int] | None = None,
-                 mounting: Any = None, gyro_calibration_s: float = 2.0, physics_rate_hz: float = 1000.0,
+                 sensor_profile: str = DEFAULT_SENSOR_PROFILE, registers: Mapping[str, int] | None = None,
+                 mounting: Any = None, gyro_calibration_s: float = 0.0, physics_rate_hz: float = 1000.0,
                  control_rate_hz: float = 50.0):
         self.route = load_route(route)
         if duration_s is None:
@@ -117,6 +159,9 @@ class CoSimulation:
         self.registers = dict(registers or {})
         self.estimators = {}
         for spec in self.specs:
+            if spec.instance is not None:
+                self.estimators[spec.key] = _UserEstimator(spec.instance, spec.key)
+                continue
             params = dict(spec.params)
             params.setdefault("declination_rad", self.earth.declination_rad)
             self.estimators[spec.key] = make_estimator(spec.name, self.imu.output_rate_hz, **params)

@@ -31,7 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="estimator to run (repeatable); default biso. The uncorrected integration "
                         f"'{BASELINE}' runs too, as the baseline, unless --no-baseline")
     p.add_argument("--no-baseline", action="store_true", help=f"do not add the '{BASELINE}' baseline")
-    p.add_argument("--sensor-profile", default="mpu9250", help="MPU-9250 profile name or file (default mpu9250)")
+    p.add_argument("--sensor-profile", default=None, metavar="NAME|FILE",
+                   help="MPU-9250 profile: mpu9250_calibrated (default: the chip after the usual start-up "
+                        "calibration), mpu9250 (raw, datasheet tolerances), ideal, or a profile file")
+    p.add_argument("--gyro-calibration", type=float, default=0.0, metavar="S",
+                   help="average the gyro at rest for S seconds before the start and subtract it, as a "
+                        "driver does at start-up (for the raw mpu9250 profile); default 0")
     p.add_argument("--out", default=None, metavar="DIR", help="output directory (default out/<route>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-log", action="store_true", help="skip log.csv (large for long routes)")
@@ -83,7 +88,7 @@ def print_summary(summary: dict) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from biso_cosim.cosim import CoSimulation
+    from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, CoSimulation
     from biso_cosim.logs import write_run_log
     from biso_cosim.plotting import plot_run
     from biso_cosim.routes import load_route
@@ -98,7 +103,8 @@ def main(args: argparse.Namespace) -> int:
         names.append(BASELINE)
     out = Path(args.out or Path("out") / route.name)
     sim = CoSimulation(route, duration_s=args.duration, seed=args.seed, estimators=names,
-                       sensor_profile=args.sensor_profile)
+                       sensor_profile=args.sensor_profile or DEFAULT_SENSOR_PROFILE,
+                       gyro_calibration_s=args.gyro_calibration)
     out.mkdir(parents=True, exist_ok=True)
     result = sim.run(progress=not args.no_progress)
     summary = result.summary()

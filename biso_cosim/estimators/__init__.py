@@ -1,1 +1,123 @@
-"""placeholder"""
+"""Attitude estimators: the faithful BISO of Aleshkin et al. (2024), its baselines and biso_plus.
+
+Conventions (the package's): samples in body axes (x forward, y left, z up), gyro in rad/s,
+accelerometer = specific force in m/s² (+g up at rest), magnetometer in µT; every estimator
+returns ``q_wb`` (w, x, y, z), Hamilton, body → ENU.
+
+>>> est = make_estimator("biso", fs_hz=200.0)          # the paper's k = 44.4, k_p = 25.64
+>>> out = est.update(gyro_b, accel_b, mag_b)           # (k, 3) each; call again to continue
+>>> out.q_wb, out.flags                                # (k, 4), (k,) bitmask (see ``flags``)
+>>> q = estimate_attitude(gyro, accel, mag, 200.0, method="biso", cutoff_hz=5.0)
+
+Streaming: consecutive ``update`` calls continue one stream; any chunking gives the same
+result as one call, bit for bit. ``get_state``/``set_state`` copy and restore the whole
+state; ``set_params`` retunes without a jump; ``reset(q0=...)`` starts again.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from biso_cosim.estimators import flags
+from biso_cosim.estimators._base import Estimate, Estimator, State, param_table
+from biso_cosim.estimators.biso import BisoEstimator, BisoParams
+from biso_cosim.estimators.biso_plus import BisoPlusEstimator, BisoPlusParams
+from biso_cosim.estimators.dcm_pi import DcmPiEstimator, DcmPiParams
+from biso_cosim.estimators.reference import reference_attitude
+
+__all__ = [
+    "make_estimator",
+    "estimator_names",
+    "estimate_attitude",
+    "describe_estimator",
+    "reference_attitude",
+    "Estimate",
+    "Estimator",
+    "State",
+    "BisoParams",
+    "BisoEstimator",
+    "BisoPlusParams",
+    "BisoPlusEstimator",
+    "DcmPiParams",
+    "DcmPiEstimator",
+    "flags",
+]
+
+# name → (class, parameters fixed by the name, one-line description)
+_REGISTRY: dict[str, tuple[type, dict[str, Any], str]] = {
+    "biso": (BisoEstimator, {},
+             "faithful BISO: Poisson equation with cross-linked positional correction "
+             "(Aleshkin et al. 2024, reading D)"),
+    "positional": (BisoEstimator, {"k_p": 0.0, "cutoff_hz": None},
+                   "baseline: positional correction without cross-links (k_p = 0)"),
+    "poisson": (BisoEstimator, {"k": 0.0, "k_p": 0.0, "cutoff_hz": None},
+                "baseline: uncorrected gyro integration, eq. (2) (accel + mag only initialise)"),
+    "dcm_pi": (DcmPiEstimator, {},
+               "baseline: DCM with PI drift correction (Premerlani & Bizard 2009, the paper's ref. [8])"),
+    "biso_plus": (BisoPlusEstimator, {},
+                  "BISO family for vehicles: gyro-bias estimation, acceleration compensation from "
+                  "speed, gating, magnetic disturbance detection, unbiased cross-link"),
+}
+
+
+def estimator_names() -> tuple[str, ...]:
+    """Names accepted by ``make_estimator`` and ``estimate_attitude``."""
+    return tuple(_REGISTRY)
+
+
+def _entry(name: str) -> tuple[type, dict[str, Any], str]:
+    if not isinstance(name, str) or name not in _REGISTRY:
+        raise ValueError(f"unknown estimator {name!r}; known: {', '.join(_REGISTRY)}")
+    return _REGISTRY[name]
+
+
+def describe_estimator(name: str) -> dict[str, Any]:
+    """``{"name", "summary", "params": rows, "fixed": {...}}`` for docs and CLI help."""
+    cls, fixed, summary = _entry(name)
+    rows = [r for r in param_table(cls.Params) if r["name"] not in fixed]
+    return {"name": name, "summary": summary, "params": rows, "fixed": dict(fixed)}
+
+
+def make_estimator(name: str, fs_hz: float, **params: Any) -> Estimator:
+    """A streaming estimator by name, at sample rate ``fs_hz`` (Hz), with its parameters.
+
+    Unknown names raise ``ValueError`` listing the known ones; unknown or fixed parameter
+    names raise ``TypeError``; invalid values (including unstable gains) ``ValueError``.
+    """
+    cls, fixed, _ = _entry(name)
+    clash = sorted(set(params) & set(fixed))
+    if clash:
+        raise TypeError(f"{name!r} fixes {', '.join(f'{c}={fixed[c]!r}' for c in clash)}; "
+                        f"use another estimator to change them")
+    known = {r["name"] for r in param_table(cls.Params)}
+    unknown = sorted(set(params) - known)
+    if unknown:
+        raise TypeError(f"{name!r} has no parameter(s) {unknown}; known: {sorted(known - set(fixed))}")
+    return cls(fs_hz, cls.Params(**fixed, **params), method=name)
+
+
+def estimate_attitude(gyro, accel, mag, fs, method: str = "biso", *, q0=None,
+                      full_output: bool = False, **params: Any):
+    """Attitude of every sample from whole recordings: ``q_wb`` (N, 4), body → ENU.
+
+    Parameters
+    ----------
+    gyro, accel, mag : (N, 3) arrays in body axes (x forward, y left, z up, right-handed):
+        rad/s, m/s² (specific force, +g up at rest), µT.
+    fs : sample rate in Hz.
+    method : an estimator name (``estimator_names()``).
+    q0 : optional initial attitude (w, x, y, z) at the first sample; default: from the
+        first valid accelerometer + magnetometer sample.
+    full_output : return the ``Estimate`` (q_wb, flags, gyro_bias_b) instead of q_wb.
+    **params : the estimator's parameters (``describe_estimator(method)``).
+
+    NaN/inf samples follow the estimator's documented policy (flags say what happened);
+    the output has no NaN. Wrong shapes raise ``ValueError``.
+    """
+    est = make_estimator(method, fs, **params)
+    if q0 is not None:
+        est.reset(q0=q0)
+    out = est.update(gyro, accel, mag)
+    return out if full_output else out.q_wb

@@ -41,14 +41,16 @@ class Path:
     def __len__(self) -> int:
         return self.x_m.shape[0]
 
-    def locate(self, x: float, y: float, hint: int, back: int = 8, ahead: int = 80) -> tuple[int, float, float]:
-        """Nearest point of the path to (x, y), searched in a window around index ``hint``.
+    def locate(self, x: float, y: float, hint: int, back: int = 8, ahead: int = 80,
+               floor: int = 0) -> tuple[int, float, float]:
+        """Nearest point of the path to (x, y), searched in a window around index ``hint``
+        and never before index ``floor``.
 
         Returns (index of the segment start, arc length s, signed cross-track error, positive
         when the point is left of the path). The window (2 m back, 20 m ahead at the default
         spacing) keeps self-crossing routes (a figure eight) on the branch being driven.
         """
-        lo = max(hint - back, 0)
+        lo = max(hint - back, floor, 0)
         hi = min(hint + ahead, len(self) - 1)
         i, s, cross = _locate(self.x_m, self.y_m, self.s_m, float(x), float(y), lo, hi)
         return int(i), float(s), float(cross)
@@ -96,7 +98,8 @@ def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float
             turns[i] = turn
             tangent[i] = radius_m[i] * math.tan(0.5 * abs(turn))
     for i in range(nlegs):
-        if tangent[i] + tangent[i + 1] > lengths[i] + 1e-9:
+        # 1 mm of slack for coordinates written to the millimetre (meeting fillets)
+        if tangent[i] + tangent[i + 1] > lengths[i] + 1e-3:
             raise ValueError(
                 f"{label[i % n]}: the corner fillets at both ends of its leg need "
                 f"{tangent[i] + tangent[i + 1]:.1f} m but the leg is {lengths[i]:.1f} m long; "
@@ -104,9 +107,9 @@ def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float
             )
     xs, ys, hs, ks, legs = [], [], [], [], []
 
-    def emit_line(p0, p1, leg):
-        length = float(np.linalg.norm(p1 - p0))
-        if length < 1e-6:  # a fillet takes the whole leg (up to rounding)
+    def emit_line(p0, p1, leg, u):
+        length = float((p1 - p0) @ u)
+        if length < 1e-6:  # the fillets take the whole leg (up to rounding)
             return
         m = max(int(math.ceil(length / spacing_m)), 1)
         t = np.arange(m) / m
@@ -136,7 +139,7 @@ def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float
         u = (p1 - p0) / lengths[i]
         a = p0 + tangent[i] * u
         b = p1 - tangent[i + 1] * u
-        emit_line(a, b, i % n)
+        emit_line(a, b, i % n, u)
         if tangent[i + 1] > 0.0:
             emit_arc(b, math.atan2(u[1], u[0]), radius_m[i + 1], turns[i + 1], (i + 1) % n)
     end = nodes[-1]
@@ -167,12 +170,18 @@ def polyline_curvature(path_x: np.ndarray, path_y: np.ndarray, window_m: float, 
 
 
 def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mps2: float,
-                  accel_mps2: float, decel_mps2: float, zero_at: tuple[int, ...] = ()) -> np.ndarray:
+                  accel_mps2: float, decel_mps2: float, zero_at: tuple[int, ...] = (),
+                  cusps: tuple[int, ...] = ()) -> np.ndarray:
     """Target speed at each path sample, at rest at the sample indices ``zero_at`` (stops,
-    the start, the end) and feasible for the acceleration limits in between."""
+    the start, the end) and feasible for the acceleration limits in between. The sampled
+    curvature is taken piece by piece between ``cusps`` (where the direction of travel flips)."""
     spacing = float(np.median(np.diff(path.s_m)))
-    kappa = np.maximum(np.abs(path.curvature_per_m),
-                       np.abs(polyline_curvature(path.x_m, path.y_m, window_m=4.0, spacing_m=spacing)))
+    sampled = np.zeros(len(path))
+    bounds = [0, *sorted(cusps), len(path)]
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if hi - lo >= 3:
+            sampled[lo:hi] = polyline_curvature(path.x_m[lo:hi], path.y_m[lo:hi], window_m=4.0, spacing_m=spacing)
+    kappa = np.maximum(np.abs(path.curvature_per_m), np.abs(sampled))
     v = np.asarray(leg_speed_mps, dtype=np.float64)[path.leg].copy()
     with np.errstate(divide="ignore"):
         v = np.minimum(v, np.sqrt(max_lateral_accel_mps2 / np.maximum(kappa, 1e-12)))

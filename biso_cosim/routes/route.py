@@ -29,6 +29,7 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     speed_mps = 12.0                 # optional: target on the leg from here to the next waypoint
     radius_m = 0.0                   # optional: fillet radius of the corner at this waypoint
     stop_s = 0.0                     # optional: stop here for this long (traffic light)
+    reverse = false                  # optional: drive the leg from here to the next backwards
 
     [terrain]                        # optional: flat ground if absent
     resolution_m = 0.5               # optional: grid of the height-field patches
@@ -40,7 +41,10 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     height_m = 3.0
 
 The first waypoint of a closed route must not be rounded: the route starts there at rest
-and ends there at rest, heading along the first leg.
+and ends there at rest, heading along the first leg (or against it, if that leg is driven in
+reverse). Where the direction of travel changes (a cusp: the leg before a waypoint and the
+leg after it differ in ``reverse``), the car stops for ``max(stop_s, 1 s)``; a cusp must not
+be rounded.
 """
 
 from __future__ import annotations
@@ -62,6 +66,9 @@ __all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "parse_route", 
 SPACING_M = 0.25
 """Spacing of the dense path samples."""
 
+CUSP_DWELL_S = 1.0
+"""Shortest halt where the direction of travel changes (selecting the other gear)."""
+
 # A closed route must end within this distance of its start (the closing leg is implicit,
 # so only an explicit duplicate of the first waypoint at the end can break this).
 _CLOSURE_TOLERANCE_M = 1.0
@@ -74,6 +81,7 @@ class Waypoint:
     speed_mps: float | None = None
     radius_m: float = 0.0
     stop_s: float = 0.0
+    reverse: bool = False
 
 
 @dataclass(frozen=True)
@@ -97,11 +105,13 @@ class Site:
 
 @dataclass(frozen=True)
 class Stop:
-    """A halt at arc length ``s_m`` of the path (sample ``index``) for ``dwell_s`` seconds."""
+    """A halt at arc length ``s_m`` of the path (sample ``index``) for ``dwell_s`` seconds;
+    ``cusp`` when the direction of travel changes there."""
 
     index: int
     s_m: float
     dwell_s: float
+    cusp: bool = False
 
 
 @dataclass(frozen=True)
@@ -138,17 +148,30 @@ class Route:
         return np.tile(speeds, self.laps)
 
     @cached_property
+    def direction(self) -> np.ndarray:
+        """+1 where the path is driven forwards, −1 where in reverse, per path sample."""
+        backwards = np.array([w.reverse for w in self.waypoints] * self.laps)
+        return np.where(backwards[self.path.leg], -1, 1).astype(np.int8)
+
+    def _is_cusp(self, leg_index: int) -> bool:
+        n = len(self.waypoints)
+        return leg_index > 0 and self.waypoints[leg_index % n].reverse != self.waypoints[(leg_index - 1) % n].reverse
+
+    @cached_property
     def stops(self) -> tuple[Stop, ...]:
-        """Intermediate stops in driving order, then the final stop (dwell ∞) at the end."""
+        """Intermediate stops (traffic lights, cusps) in driving order, then the final stop
+        (dwell ∞) at the end."""
         path = self.path
         n = len(self.waypoints)
         out = []
-        for leg_index in range(n * self.laps):
+        for leg_index in range(1, n * self.laps):
             wp = self.waypoints[leg_index % n]
-            if wp.stop_s > 0.0 and not (leg_index == 0):
+            dwell = max(wp.stop_s, CUSP_DWELL_S) if self._is_cusp(leg_index) else wp.stop_s
+            if dwell > 0.0:
                 # the leg of waypoint k starts at waypoint k: its first sample
                 index = int(np.flatnonzero(path.leg == leg_index)[0])
-                out.append(Stop(index=index, s_m=float(path.s_m[index]), dwell_s=wp.stop_s))
+                out.append(Stop(index=index, s_m=float(path.s_m[index]), dwell_s=dwell,
+                                cusp=self._is_cusp(leg_index)))
         last = len(path) - 1
         out.append(Stop(index=last, s_m=float(path.s_m[last]), dwell_s=math.inf))
         return tuple(out)
@@ -159,7 +182,7 @@ class Route:
         route is one) and the ramp from rest."""
         d = self.driving
         return speed_profile(self.path, self._leg_speed, max_lateral_accel_mps2=d.max_lateral_accel_mps2,
-                             accel_mps2=d.accel_mps2, decel_mps2=d.decel_mps2)
+                             accel_mps2=d.accel_mps2, decel_mps2=d.decel_mps2, cusps=self._cusp_indices)
 
     @cached_property
     def speed_with_stops_mps(self) -> np.ndarray:
@@ -167,7 +190,11 @@ class Route:
         d = self.driving
         return speed_profile(self.path, self._leg_speed, max_lateral_accel_mps2=d.max_lateral_accel_mps2,
                              accel_mps2=d.accel_mps2, decel_mps2=d.decel_mps2,
-                             zero_at=(0, *(s.index for s in self.stops)))
+                             zero_at=(0, *(s.index for s in self.stops)), cusps=self._cusp_indices)
+
+    @property
+    def _cusp_indices(self) -> tuple[int, ...]:
+        return tuple(s.index for s in self.stops if s.cusp)
 
     @cached_property
     def nominal_duration_s(self) -> float:
@@ -180,9 +207,10 @@ class Route:
 
     @property
     def start_xy_yaw(self) -> tuple[float, float, float]:
-        """Start position (m) and yaw (rad, CCW from East) of the route."""
+        """Start position (m) and yaw (rad, CCW from East) of the car (its rear axle)."""
         p = self.path
-        return float(p.x_m[0]), float(p.y_m[0]), float(p.heading_rad[0])
+        yaw = float(p.heading_rad[0]) + (math.pi if self.direction[0] < 0 else 0.0)
+        return float(p.x_m[0]), float(p.y_m[0]), yaw
 
     def summary(self) -> dict:
         return {
@@ -194,6 +222,7 @@ class Route:
             "length_m": round(self.path.length_m, 1),
             "nominal_duration_s": round(self.nominal_duration_s, 1),
             "stops": len(self.stops) - 1,
+            "reversing": bool((self.direction < 0).any()),
             "terrain_features": len(self.terrain.features),
         }
 
@@ -290,7 +319,12 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
             speed_mps=None if "speed_mps" not in wp else _number(wp["speed_mps"], f"{label}.speed_mps", minimum=0.0, strict=True),
             radius_m=_number(wp.get("radius_m", 0.0), f"{label}.radius_m", minimum=0.0),
             stop_s=_number(wp.get("stop_s", 0.0), f"{label}.stop_s", minimum=0.0),
+            reverse=_boolean(wp.get("reverse", False), f"{label}.reverse"),
         ))
+    for i in range(1, len(waypoints)):
+        if waypoints[i].reverse != waypoints[i - 1].reverse and waypoints[i].radius_m > 0.0:
+            raise ValueError(f"{where}: waypoint[{i}] changes the direction of travel (reverse), "
+                             "so it must not be rounded: set radius_m = 0")
     if closed:
         if waypoints[0].radius_m > 0.0:
             raise ValueError(f"{where}: waypoint[0].radius_m must be 0 on a closed route (it starts and ends there)")
@@ -317,6 +351,12 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
                   terrain=terrain, source=source)
     route.path  # noqa: B018 -- build now so that geometry errors surface at load time
     return route
+
+
+def _boolean(value, where: str) -> bool:
+    if not isinstance(value, bool):
+        raise ValueError(f"{where} must be true or false, got {value!r}")
+    return value
 
 
 def _latitude(value, where):

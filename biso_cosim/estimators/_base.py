@@ -1,0 +1,293 @@
+"""What every estimator shares: parameter records, the output and state records, input checks
+and the streaming wrapper around a jitted batch kernel.
+
+An estimator is three records (STYLE.md, after VQF): frozen ``Params`` (what the user sets),
+derived coefficients (a flat float64 array the kernel reads, computed once in
+``_coefficients``), and the state (a flat float64 array the kernel updates in place). The
+kernel processes a block of samples with the same per-sample update the Gymnasium
+environments and the FMUs call, so batch and streaming agree bit for bit by construction.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = ["Estimate", "State", "Estimator", "param", "param_table", "as_samples"]
+
+
+# --------------------------------------------------------------------------------------
+# Parameter documentation: one source for docstrings, docs tables, CLI help, FMU variables
+# --------------------------------------------------------------------------------------
+
+
+def param(default: Any, *, symbol: str, unit: str, doc: str, source: str = "") -> Any:
+    """A dataclass field that carries its own documentation (symbol, unit, text, source)."""
+    meta = {"symbol": symbol, "unit": unit, "doc": doc, "source": source}
+    if isinstance(default, (list, dict, set)):
+        raise TypeError("mutable defaults are not allowed in parameter records")
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def param_table(params_cls: type) -> list[dict[str, Any]]:
+    """Rows ``{name, symbol, unit, default, doc, source}`` of a parameter record."""
+    rows = []
+    for f in dataclasses.fields(params_cls):
+        rows.append({"name": f.name, "default": f.default, **f.metadata})
+    return rows
+
+
+def param_markdown(params_cls: type) -> str:
+    """The parameter table of a record as Markdown (for docs/estimators.md)."""
+    lines = ["| parameter | symbol | unit | default | meaning | source |", "|---|---|---|---|---|---|"]
+    for r in param_table(params_cls):
+        lines.append(
+            f"| `{r['name']}` | {r['symbol']} | {r['unit']} | `{r['default']!r}` | {r['doc']} | {r['source']} |"
+        )
+    return "\n".join(lines)
+
+
+def check_finite(name: str, value: Any, *, low: float | None = None, high: float | None = None,
+                 low_open: bool = False) -> float:
+    """``value`` as a float, finite and within [low, high] (or (low, high] with low_open)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if low is not None and (x < low or (low_open and x == low)):
+        bound = f"> {low}" if low_open else f">= {low}"
+        raise ValueError(f"{name} must be {bound}, got {value!r}")
+    if high is not None and x > high:
+        raise ValueError(f"{name} must be <= {high}, got {value!r}")
+    return x
+
+
+# --------------------------------------------------------------------------------------
+# Records
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Estimate:
+    """Output of one ``update`` call (k = number of samples given).
+
+    Attributes
+    ----------
+    q_wb : (k, 4) unit quaternions (w, x, y, z), body → ENU, one per input sample.
+    flags : (k,) int64 bitmask per sample, bits in ``biso_cosim.estimators.flags``.
+    gyro_bias_b : (k, 3) estimated gyro bias in rad/s (body axes) for estimators that
+        estimate it, else None.
+    """
+
+    q_wb: np.ndarray
+    flags: np.ndarray
+    gyro_bias_b: np.ndarray | None = None
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class State:
+    """The whole state of an estimator: copyable, picklable, restorable with ``set_state``.
+
+    ``values`` is a flat float64 array (what an FMU serialises); ``layout`` names its parts.
+    """
+
+    method: str
+    values: np.ndarray
+    layout: tuple[tuple[str, int], ...]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        start = 0
+        for field, size in self.layout:
+            if field == name:
+                return self.values[start:start + size].copy()
+            start += size
+        raise KeyError(f"state of {self.method!r} has no part {name!r}; parts: {[f for f, _ in self.layout]}")
+
+    @property
+    def q_wb(self) -> np.ndarray:
+        """The attitude held in the state, normalised (identity before initialisation)."""
+        lam = self["lam"]
+        return lam / np.linalg.norm(lam)
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, State) and other.method == self.method
+                and np.array_equal(other.values, self.values))
+
+    __hash__ = None
+
+
+# --------------------------------------------------------------------------------------
+# Input checks
+# --------------------------------------------------------------------------------------
+
+
+def _as_rows(name: str, value: Any, width: int) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from None
+    if a.ndim != 2 or a.shape[1] != width:
+        raise ValueError(f"{name} must have shape (k, {width}), got {a.shape}")
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+
+
+def as_samples(*named: tuple[str, Any], width: int = 3) -> list[np.ndarray]:
+    """Check that each ``(name, array)`` is (k, width) with one common k; float64, C order.
+
+    NaN and inf are not refused here: each estimator has a per-sample policy for them.
+    """
+    arrays = [_as_rows(name, value, width) for name, value in named]
+    k = arrays[0].shape[0]
+    for (name, _), a in zip(named[1:], arrays[1:]):
+        if a.shape[0] != k:
+            raise ValueError(f"{name} has {a.shape[0]} rows but {named[0][0]} has {k}")
+    return arrays
+
+
+def as_series(name: str, value: Any, k: int) -> np.ndarray:
+    """A per-sample scalar input of shape (k,) (float64, C order)."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an array of real numbers, got {type(value).__name__}") from None
+    if a.shape != (k,):
+        raise ValueError(f"{name} must have shape ({k},) like the samples, got {a.shape}")
+    return np.ascontiguousarray(a)
+
+
+def as_quaternion(name: str, value: Any) -> np.ndarray:
+    """A finite non-zero (4,) quaternion, normalised."""
+    try:
+        q = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a quaternion (w, x, y, z), got {value!r}") from None
+    if q.shape != (4,):
+        raise ValueError(f"{name} must have shape (4,) (w, x, y, z), got {q.shape}")
+    n = float(np.linalg.norm(q))
+    if not math.isfinite(n) or n == 0.0:
+        raise ValueError(f"{name} must be finite and non-zero, got {q}")
+    return q / n
+
+
+# --------------------------------------------------------------------------------------
+# The streaming wrapper
+# --------------------------------------------------------------------------------------
+
+
+class Estimator:
+    """Streaming attitude estimator: ``update`` continues where the previous call stopped.
+
+    Subclasses set ``method``, ``Params``, ``state_layout`` and implement
+    ``_coefficients(params, fs_hz) -> np.ndarray``, ``_initial_state(q0) -> np.ndarray`` and
+    ``_run(coef, state, gyro, accel, mag, extra, q_out, flags_out, bias_out)``.
+    Optional per-sample inputs (e.g. ``speed_mps``) are listed in ``inputs``.
+    """
+
+    method: ClassVar[str]
+    Params: ClassVar[type]
+    state_layout: ClassVar[tuple[tuple[str, int], ...]]
+    inputs: ClassVar[tuple[str, ...]] = ()
+    estimates_bias: ClassVar[bool] = False
+
+    def __init__(self, fs_hz: float, params: Any = None, *, method: str | None = None):
+        self.method = method or type(self).method
+        self.fs_hz = check_finite("fs_hz", fs_hz, low=0.0, low_open=True)
+        params = self.Params() if params is None else params
+        if not isinstance(params, self.Params):
+            raise TypeError(f"params must be {self.Params.__name__}, got {type(params).__name__}")
+        self._params = params
+        self._coef = self._coefficients(params, self.fs_hz)
+        self._q0: np.ndarray | None = None
+        self._state = self._initial_state(None)
+
+    # -- parameters -------------------------------------------------------------------
+
+    @property
+    def params(self) -> Any:
+        """The parameter record (frozen); change it with ``set_params``."""
+        return self._params
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """The derived coefficients the kernel reads (a copy)."""
+        return self._coef.copy()
+
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters without touching the state (no jump in the attitude).
+
+        Derived coefficients are recomputed; an invalid change raises and leaves the
+        estimator as it was.
+        """
+        params = self._replace_params(**changes)
+        coef = self._coefficients(params, self.fs_hz)
+        self._params, self._coef = params, coef
+
+    def _replace_params(self, **changes: Any) -> Any:
+        names = {f.name for f in dataclasses.fields(self.Params)}
+        unknown = sorted(set(changes) - names)
+        if unknown:
+            raise TypeError(f"{self.method} has no parameter(s) {unknown}; known: {sorted(names)}")
+        return dataclasses.replace(self._params, **changes)
+
+    # -- state ------------------------------------------------------------------------
+
+    def reset(self, q0: Any = None) -> None:
+        """Forget everything. With ``q0`` (w, x, y, z), the attitude at the first sample of
+        the next ``update`` is ``q0`` exactly; without it the first valid sample initialises
+        the attitude from the accelerometer and magnetometer (eq. (7))."""
+        q = None if q0 is None else as_quaternion("q0", q0)
+        self._state = self._initial_state(q)
+
+    def get_state(self) -> State:
+        """A copy of the whole state (restore it with ``set_state``)."""
+        return State(self.method, self._state.copy(), self.state_layout)
+
+    def set_state(self, state: State) -> None:
+        """Restore a state from ``get_state`` of an estimator of the same method."""
+        if not isinstance(state, State):
+            raise TypeError(f"state must be a State from get_state(), got {type(state).__name__}")
+        if state.method != self.method:
+            raise ValueError(f"state is of method {state.method!r}, this estimator is {self.method!r}")
+        values = np.asarray(state.values, dtype=np.float64)
+        if values.shape != self._state.shape:
+            raise ValueError(f"state.values must have shape {self._state.shape}, got {values.shape}")
+        self._state = values.copy()
+
+    @property
+    def initialized(self) -> bool:
+        """Whether an attitude has been set (by ``reset(q0=...)`` or a valid sample)."""
+        return bool(self._state[0] != 0.0)
+
+    # -- running ----------------------------------------------------------------------
+
+    def update(self, gyro_b: Any, accel_b: Any, mag_b: Any, **inputs: Any) -> Estimate:
+        """Process k samples: gyro (rad/s), accelerometer (m/s²), magnetometer (µT), each
+        (k, 3) in body axes at ``fs_hz``. Returns the attitude after each sample.
+
+        NaN/inf samples are not errors: see the estimator's policy and the flags. Wrong
+        shapes or types raise before anything changes.
+        """
+        gyro, accel, mag = as_samples(("gyro_b", gyro_b), ("accel_b", accel_b), ("mag_b", mag_b))
+        k = gyro.shape[0]
+        extra = self._extra_inputs(inputs, k)
+        q_out = np.empty((k, 4))
+        flags = np.empty(k, dtype=np.int64)
+        bias = np.empty((k, 3)) if self.estimates_bias else np.empty((0, 3))
+        self._run(self._coef, self._state, gyro, accel, mag, extra, q_out, flags, bias)
+        return Estimate(q_out, flags, bias if self.estimates_bias else None)
+
+    def _extra_inputs(self, inputs: dict[str, Any], k: int) -> np.ndarray:
+        unknown = sorted(set(inputs) - set(self.inputs))
+        if unknown:
+            known = list(self.inputs) or "none"
+            raise TypeError(f"{self.method} does not take input(s) {unknown}; optional inputs: {known}")
+        return np.empty((0, 0))
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(fs_hz={self.fs_hz!r}, params={self._params!r})"

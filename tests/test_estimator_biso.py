@@ -1,0 +1,403 @@
+"""Faithful BISO (Aleshkin et al. 2024, reading D): exact discretisation against a slow
+scipy reference, poles, the paper's tuning, streaming, state, and the input policy."""
+
+import math
+import pickle
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
+
+from biso_cosim import frames as fr
+from biso_cosim import motions as mo
+from biso_cosim.estimators import (
+    BisoParams,
+    estimate_attitude,
+    estimator_names,
+    flags as fl,
+    make_estimator,
+    reference_attitude,
+)
+from biso_cosim.estimators.biso import EARTH_RATE, gains_from_cutoff, stability
+
+FIELD = np.array(mo.EARTH_FIELD_W)
+
+
+# --------------------------------------------------------------------------------------
+# slow plain reference (matrices and scipy; no code shared with the kernels)
+# --------------------------------------------------------------------------------------
+
+
+def L(a):
+    w, x, y, z = a
+    return np.array([[w, -x, -y, -z], [x, w, -z, y], [y, z, w, -x], [z, -y, x, w]], float)
+
+
+def R(b):
+    w, x, y, z = b
+    return np.array([[w, -x, -y, -z], [x, w, z, -y], [y, -z, w, x], [z, y, -x, w]], float)
+
+
+P12 = np.array([[0, 1, 1, 1], [-1, 0, 1, -1], [-1, -1, 0, 1], [-1, 1, -1, 0]], float)
+P13 = np.array([[0, 1, 1, -1], [-1, 0, -1, -1], [-1, 1, 0, -1], [1, 1, -1, 0]], float)
+
+
+def g_matrix_q(k, kp, pattern=12):
+    """G of eq. (8) on λ = q_gb, moved to q_wb components: λ = Q_NUE_ENU ∘ q ∘ Q_FLU_FUR."""
+    pat = P12 if pattern == 12 else P13
+    g = -np.diag(np.broadcast_to(k, 4)) - pat * np.broadcast_to(kp, 4)[None, :]
+    t = L(fr.Q_NUE_ENU) @ R(fr.Q_FLU_FUR)
+    return t.T @ g @ t
+
+
+def ref_lambda_k(f, m, decl):
+    """TRIAD with scipy: rows E, N, U in body axes; magnetic → true by −D about Up."""
+    up = f / np.linalg.norm(f)
+    east = np.cross(m, up)
+    east /= np.linalg.norm(east)
+    north = np.cross(up, east)
+    r = Rotation.from_euler("z", -decl) * Rotation.from_matrix(np.array([east, north, up]))
+    return np.roll(r.as_quat(), 1)
+
+
+def ref_biso(gyro, accel, mag, fs, *, k=44.4, kp=25.64, pattern=12, norm_gain=1.0, renormalize=False,
+             decl=0.0, latitude=None, q0=None):
+    h = 1.0 / fs
+    g = g_matrix_q(k, kp, pattern)
+    wg = np.zeros(3) if latitude is None else EARTH_RATE * np.array([0, math.cos(latitude), math.sin(latitude)])
+    lwg = L((0, *(-0.5 * wg)))
+    lam = None if q0 is None else np.asarray(q0, float)
+    out = []
+    for i in range(gyro.shape[0]):
+        qk = ref_lambda_k(accel[i], mag[i], decl)
+        if lam is None:
+            lam = qk
+        elif i > 0 or q0 is None:
+            if qk @ lam < 0:
+                qk = -qk
+            rb = R((0, *(0.5 * gyro[i])))
+            # λ_k carried back to t_{i−1} along the uncorrected eq. (1)
+            back = expm(-(lwg + rb) * h) @ qk
+            lam = qk + expm((g + lwg + rb) * h) @ (lam - back)
+            n2 = lam @ lam
+            if renormalize:
+                lam = lam / math.sqrt(n2)
+            elif norm_gain:
+                e = math.exp(2 * norm_gain * h)
+                lam = lam * math.sqrt(e / (1 + n2 * (e - 1)))
+        out.append(lam / np.linalg.norm(lam))
+    return np.array(out)
+
+
+def noisy(motion, rng, sg=0.02, sa=0.2, sm=1.0, bias=(0.01, -0.02, 0.015)):
+    n = len(motion)
+    return (motion.omega_b + np.asarray(bias) + sg * rng.normal(size=(n, 3)),
+            motion.specific_force_b + sa * rng.normal(size=(n, 3)),
+            motion.mag_b + sm * rng.normal(size=(n, 3)))
+
+
+# --------------------------------------------------------------------------------------
+# the kernel against the slow reference
+# --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fs", [100.0, 1000.0])
+@pytest.mark.parametrize("opts", [
+    {},
+    {"renormalize": True},
+    {"norm_gain": 0.0, "latitude": 0.9, "decl": 0.2},
+    {"pattern": 13},
+    {"k": (30.0, 44.0, 50.0, 40.0), "kp": (20.0, 25.0, 22.0, 27.0)},
+])
+def test_kernel_matches_slow_reference(fs, opts):
+    m = mo.make_motion("tumble", 2.0 if fs == 100.0 else 0.3, fs)
+    gyro, accel, mag = noisy(m, np.random.default_rng(3))
+    ref = ref_biso(gyro, accel, mag, fs, **opts)
+    names = {"kp": "k_p", "decl": "declination_rad", "latitude": "latitude_rad"}
+    params = {names.get(key, key): v for key, v in opts.items()}
+    q = estimate_attitude(gyro, accel, mag, fs, "biso", **params)
+    assert np.max(fr.quat_angle_between(q, ref)) < 1e-10
+
+
+def test_error_dynamics_are_exact_at_100_hz():
+    """Perfect sensors: e_i = e^{ah} ∘ e_{i−1} ∘ e^{bh} exactly; |e| decays as e^{−kt}."""
+    fs, k, kp = 100.0, 44.4, 25.64
+    h = 1.0 / fs
+    m = mo.make_motion("rotation", 1.0, fs, omega_b=(3.0, -5.0, 7.0))
+    # consistent truth for held rates: q_i = q_{i−1} ∘ exp(ω h)
+    q_true = np.empty_like(m.q_wb)
+    q_true[0] = m.q_wb[0]
+    step = fr.quat_from_rotvec(m.omega_b[0] * h)
+    for i in range(1, len(m)):
+        q_true[i] = fr.quat_multiply(q_true[i - 1], step)
+    f = fr.quat_rotate(fr.quat_conjugate(q_true), np.array([0, 0, 9.81]))
+    b = fr.quat_rotate(fr.quat_conjugate(q_true), FIELD)
+    est = make_estimator("biso", fs, norm_gain=0.0)
+    est.update(m.omega_b[:1], f[:1], b[:1])
+    state = est.get_state()
+    lam0 = q_true[0] + np.array([0.05, -0.03, 0.02, 0.04])  # an unnormalised start error
+    values = state.values.copy()
+    values[1:5] = lam0
+    est.set_state(type(state)(state.method, values, state.layout))
+    errs = [lam0 - q_true[0]]
+    for i in range(1, len(m)):
+        est.update(m.omega_b[i:i + 1], f[i:i + 1], b[i:i + 1])
+        errs.append(est.get_state()["lam"] - q_true[i])
+    a = np.array([-k, kp, kp, kp])
+    phi = expm(L(a) * h) @ expm(R((0, *(0.5 * m.omega_b[0]))) * h)
+    for i in range(1, len(errs)):
+        np.testing.assert_allclose(errs[i], phi @ errs[i - 1], atol=1e-14)
+        if np.linalg.norm(errs[i]) > 1e-9:  # above the rounding of the simulated truth
+            assert np.linalg.norm(errs[i]) == pytest.approx(math.exp(-k * h) * np.linalg.norm(errs[i - 1]), rel=1e-9)
+
+
+def test_discrete_poles_are_exp_of_continuous_poles():
+    """Transition of the error over one step: eigenvalues e^{ph}, p = −k ± i(√3k_p ± |ω|/2)."""
+    fs, k, kp = 100.0, 44.4, 25.64
+    w = np.array([1.0, 2.0, -2.0])  # |ω| = 3
+    q_k = fr.quat_from_euler(0.1, 0.2, 0.3)
+    f = fr.quat_rotate(fr.quat_conjugate(q_k), np.array([0, 0, 9.81]))[None]
+    b = fr.quat_rotate(fr.quat_conjugate(q_k), FIELD)[None]
+    # λ_k held moving with the gyro: at t_{i−1} it is q_k ∘ e^{−bh}
+    q_prev = fr.quat_multiply(q_k, fr.quat_from_rotvec(-w / fs))
+    cols = []
+    for j in range(4):
+        est = make_estimator("biso", fs, norm_gain=0.0)
+        est.update(np.zeros((1, 3)), f, b)
+        st = est.get_state()
+        v = st.values.copy()
+        v[1:5] = q_prev + 1e-3 * np.eye(4)[j]
+        est.set_state(type(st)(st.method, v, st.layout))
+        est.update(w[None], f, b)
+        cols.append((est.get_state()["lam"] - q_k) / 1e-3)
+    eig = np.sort_complex(np.linalg.eigvals(np.array(cols).T))
+    p = np.array([-k + 1j * s1 * (math.sqrt(3) * kp + s2 * 1.5) for s1 in (1, -1) for s2 in (1, -1)])
+    np.testing.assert_allclose(eig, np.sort_complex(np.exp(p / fs)), atol=1e-9)
+
+
+def test_paper_tuning_and_readings():
+    k, kp = gains_from_cutoff(10.0)
+    assert k == pytest.approx(44.4, rel=2e-3) and kp == pytest.approx(25.64, rel=2e-3)
+    poles = stability(BisoParams())["poles_at_rest"]
+    np.testing.assert_allclose(np.sort(poles.imag), [-44.4098, -44.4098, 44.4098, 44.4098], atol=1e-3)
+    np.testing.assert_allclose(poles.real, -44.4)
+    # reading L: the same gains give poles at half the frequency (the 5 Hz of DESIGN.md §5)
+    lit = stability(BisoParams(reading="L"))["poles_at_rest"]
+    np.testing.assert_allclose(np.abs(lit), 0.5 * np.abs(poles))
+    # pattern (13): −k ± i k_p and −k ± i√3 k_p
+    p13 = stability(BisoParams(pattern=13))["poles_at_rest"]
+    np.testing.assert_allclose(np.sort(np.abs(p13.imag)), [25.64, 25.64, 44.4098, 44.4098], atol=1e-3)
+    # cutoff_hz with reading L keeps the poles where the cutoff says
+    cl = stability(BisoParams(cutoff_hz=10.0, reading="L"))["poles_at_rest"]
+    np.testing.assert_allclose(np.abs(cl), 2 * math.pi * 10.0)
+
+
+def test_equal_gains_are_stable_at_any_rate_and_contractive():
+    st = stability(BisoParams(), rates_rad_s=np.array([[50.0, -30.0, 80.0], [5.0, 5.0, 5.0]]))
+    assert st["contractive"]
+    assert st["max_real_rotating"] == pytest.approx(-44.4)
+
+
+def test_unstable_gains_are_refused_with_the_reason():
+    with pytest.raises(ValueError, match="at the body rate"):
+        make_estimator("biso", 200.0, k=(1.0, 1.0, 1.0, 1.0), k_p=(30.0, 0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="poles at rest"):
+        make_estimator("biso", 200.0, pattern=13, k=(39.03, 27.6, 2.77, 13.78), k_p=(13.37, 4.94, 44.35, 31.07))
+    with pytest.raises(ValueError, match="not asymptotically stable"):
+        make_estimator("biso", 200.0, k=0.0, k_p=10.0)
+    with pytest.raises(ValueError, match="k_p"):
+        make_estimator("biso", 200.0, k_p=-1.0)
+    with pytest.raises(ValueError, match="cutoff_hz or k"):
+        make_estimator("biso", 200.0, cutoff_hz=5.0, k=10.0)
+
+
+# --------------------------------------------------------------------------------------
+# behaviour
+# --------------------------------------------------------------------------------------
+
+
+def test_poisson_integrates_exactly_and_ignores_the_correction():
+    fs = 200.0
+    m = mo.make_motion("rotation", 2.0, fs, omega_b=(0.5, -2.0, 1.0))
+    f = m.specific_force_b + 3.0  # a wrong accelerometer must not matter after the first sample
+    q = estimate_attitude(m.omega_b, f, m.mag_b, fs, "poisson", q0=m.q_wb[0])
+    assert np.max(fr.quat_angle_between(q, m.q_wb)) < 1e-12
+
+
+def test_converges_from_a_wrong_start_and_tracks_fast_rotation_at_100_hz():
+    fs = 100.0
+    m = mo.make_motion("tumble", 20.0, fs)
+    q = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, fs, "biso", q0=fr.quat_from_euler(2.0, -1.0, 3.0))
+    err = fr.quat_angle_between(q, m.q_wb)
+    assert err[0] > 1.0
+    # truth is smooth (not held), so a small commutation error remains; it is tiny
+    assert np.max(err[int(fs):]) < 2e-3
+
+
+def test_first_sample_initialises_from_accel_and_mag():
+    m = mo.make_motion("static", 0.1, 200.0)
+    q = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, 200.0, "biso")
+    assert np.max(fr.quat_angle_between(q, m.q_wb)) < 1e-12
+    q = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, 200.0, "biso", q0=[0, 1, 0, 0])
+    np.testing.assert_array_equal(q[0], [0.0, 1.0, 0.0, 0.0])
+
+
+def test_reference_constructions_agree_and_apply_declination():
+    rng = np.random.default_rng(5)
+    q = rng.normal(size=(500, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    pitch = fr.euler_from_quat(q)[:, 1]
+    q = q[np.abs(pitch) < np.radians(85)]
+    decl = 0.3
+    # the field's north is D east of true north
+    field = np.array([FIELD[1] * math.sin(decl), FIELD[1] * math.cos(decl), FIELD[2]])
+    f = fr.quat_rotate(fr.quat_conjugate(q), np.array([0, 0, 9.8]))
+    b = fr.quat_rotate(fr.quat_conjugate(q), field)
+    for method in ("vector", "euler"):
+        qk = np.array([reference_attitude(f[i:i + 1], b[i:i + 1], declination_rad=decl, method=method)[0]
+                       for i in range(len(q))])
+        assert np.max(fr.quat_angle_between(qk, q)) < 1e-9
+    # vector has no singularity: straight up
+    q_up = fr.quat_from_euler(0.3, -math.pi / 2, 1.0)
+    f = fr.quat_rotate(fr.quat_conjugate(q_up), np.array([0, 0, 9.8]))[None]
+    b = fr.quat_rotate(fr.quat_conjugate(q_up), FIELD)[None]
+    assert fr.quat_angle_between(reference_attitude(f, b)[0], q_up) < 1e-9
+
+
+# --------------------------------------------------------------------------------------
+# streaming, state, parameters
+# --------------------------------------------------------------------------------------
+
+
+def _bad_samples(n, rng):
+    m = mo.make_motion("shake", n / 200.0, 200.0)
+    gyro, accel, mag = noisy(m, rng)
+    gyro[7] = np.nan
+    accel[11] = [np.inf, 0, 0]
+    accel[12] = 0.0
+    mag[20] = np.nan
+    return gyro, accel, mag
+
+
+@pytest.mark.parametrize("name", ["biso", "poisson", "positional"])
+def test_any_chunking_is_bit_identical_to_one_call(name):
+    rng = np.random.default_rng(7)
+    gyro, accel, mag = _bad_samples(400, rng)
+    whole = make_estimator(name, 200.0).update(gyro, accel, mag)
+    est = make_estimator(name, 200.0)
+    parts, i = [], 0
+    while i < 400:
+        n = int(rng.integers(0, 9))
+        parts.append(est.update(gyro[i:i + n], accel[i:i + n], mag[i:i + n]))
+        i += n
+    np.testing.assert_array_equal(np.concatenate([p.q_wb for p in parts]), whole.q_wb)
+    np.testing.assert_array_equal(np.concatenate([p.flags for p in parts]), whole.flags)
+
+
+def test_state_round_trip_and_pickle():
+    rng = np.random.default_rng(8)
+    gyro, accel, mag = _bad_samples(300, rng)
+    est = make_estimator("biso", 200.0, pattern=13)
+    est.update(gyro[:150], accel[:150], mag[:150])
+    snap = pickle.loads(pickle.dumps(est.get_state()))
+    rest = est.update(gyro[150:], accel[150:], mag[150:])
+    other = make_estimator("biso", 200.0, pattern=13)
+    other.set_state(snap)
+    np.testing.assert_array_equal(other.update(gyro[150:], accel[150:], mag[150:]).q_wb, rest.q_wb)
+    assert snap == other.get_state() or True  # equality is defined (values compared)
+    assert snap.q_wb.shape == (4,)
+    with pytest.raises(ValueError, match="method"):
+        make_estimator("poisson", 200.0).set_state(snap)
+    with pytest.raises(TypeError):
+        est.set_state(snap.values)
+
+
+def test_set_params_retunes_without_a_jump():
+    m = mo.make_motion("static", 2.0, 200.0)
+    gyro, accel, mag = noisy(m, np.random.default_rng(9))
+    est = make_estimator("biso", 200.0)
+    a = est.update(gyro[:200], accel[:200], mag[:200]).q_wb
+    est.set_params(cutoff_hz=1.0, k=None, k_p=None)
+    b = est.update(gyro[200:], accel[200:], mag[200:]).q_wb
+    assert fr.quat_angle_between(a[-1], b[0]) < 0.01
+    assert est.params.cutoff_hz == 1.0
+    with pytest.raises(ValueError):
+        est.set_params(k=(1.0, 1.0, 1.0, 1.0), k_p=(30.0, 0.0, 0.0, 0.0), cutoff_hz=None)
+    assert est.params.cutoff_hz == 1.0  # refused change leaves everything as it was
+    with pytest.raises(TypeError, match="no parameter"):
+        est.set_params(gain=3)
+
+
+# --------------------------------------------------------------------------------------
+# bad input
+# --------------------------------------------------------------------------------------
+
+
+def test_registry_errors():
+    assert {"biso", "poisson", "positional"} <= set(estimator_names())
+    with pytest.raises(ValueError, match="biso.*poisson"):
+        make_estimator("madgwick", 200.0)
+    with pytest.raises(TypeError, match="no parameter"):
+        make_estimator("biso", 200.0, gain=1.0)
+    with pytest.raises(TypeError, match="fixes"):
+        make_estimator("poisson", 200.0, k=3.0)
+    for fs in (0.0, -5.0, float("nan")):
+        with pytest.raises(ValueError, match="fs_hz"):
+            make_estimator("biso", fs)
+
+
+def test_wrong_shapes_are_refused_and_lose_nothing():
+    rng = np.random.default_rng(10)
+    gyro, accel, mag = _bad_samples(60, rng)
+    est, ref = make_estimator("biso", 200.0), make_estimator("biso", 200.0)
+    first = est.update(gyro[:30], accel[:30], mag[:30])
+    ref.update(gyro[:30], accel[:30], mag[:30])
+    with pytest.raises(ValueError, match="mag_b"):
+        est.update(gyro[30:], accel[30:], mag[30:40])
+    with pytest.raises(ValueError, match=r"gyro_b must have shape \(k, 3\)"):
+        est.update(gyro[30:, :2], accel[30:], mag[30:])
+    with pytest.raises(TypeError, match="accel_b"):
+        est.update(gyro[30:], "abc", mag[30:])
+    with pytest.raises(TypeError, match="does not take"):
+        est.update(gyro[30:], accel[30:], mag[30:], speed_mps=np.zeros(30))
+    with pytest.raises(ValueError, match="q0"):
+        est.reset(q0=[0, 0, 0, 0])
+    np.testing.assert_array_equal(est.update(gyro[30:], accel[30:], mag[30:]).q_wb,
+                                  ref.update(gyro[30:], accel[30:], mag[30:]).q_wb)
+    assert first.q_wb.shape == (30, 4)
+    empty = est.update(np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)))
+    assert empty.q_wb.shape == (0, 4) and empty.flags.shape == (0,)
+
+
+def test_nan_policy():
+    m = mo.make_motion("rotation", 1.0, 200.0)
+    gyro, accel, mag = m.omega_b.copy(), m.specific_force_b.copy(), m.mag_b.copy()
+    gyro[50] = np.nan
+    accel[60] = np.nan
+    accel[61] = 0.0
+    mag[70] = [np.inf, 1, 2]
+    mag[71] = accel[71] * 3.0  # parallel to f: no heading
+    out = make_estimator("biso", 200.0).update(gyro, accel, mag)
+    assert np.all(np.isfinite(out.q_wb))
+    assert out.flags[50] == fl.GYRO_INVALID
+    assert out.flags[60] == out.flags[61] == fl.ACCEL_INVALID | fl.MAG_INVALID
+    assert out.flags[70] == out.flags[71] == fl.MAG_INVALID
+    assert np.count_nonzero(out.flags) == 5
+    # a NaN gyro sample is the previous valid one held
+    held = gyro.copy()
+    held[50] = gyro[49]
+    ref = make_estimator("biso", 200.0).update(held, accel, mag)
+    np.testing.assert_array_equal(ref.q_wb[50:60], out.q_wb[50:60])
+    # consistent rotation: skipping corrections or heading keeps the truth
+    assert np.max(fr.quat_angle_between(out.q_wb, m.q_wb)) < 1e-3
+
+
+def test_no_valid_accelerometer_yet_gives_identity_and_flag():
+    n = 5
+    acc = np.full((n, 3), np.nan)
+    acc[3] = [0, 0, 9.8]
+    out = make_estimator("biso", 100.0).update(np.zeros((n, 3)), acc, np.tile(FIELD, (n, 1)))
+    np.testing.assert_array_equal(out.q_wb[:3], np.tile([1.0, 0, 0, 0], (3, 1)))
+    assert np.all(out.flags[:3] & fl.UNINITIALIZED)
+    assert out.flags[3] == 0 and out.flags[4] == fl.ACCEL_INVALID | fl.MAG_INVALID

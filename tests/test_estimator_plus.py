@@ -1,0 +1,162 @@
+"""biso_plus: acceleration compensation, bias, magnetic disturbances and offset, the unbiased
+cross-link (against the biased faithful one), and the DCM PI baseline."""
+
+import math
+
+import numpy as np
+import pytest
+
+from biso_cosim import frames as fr
+from biso_cosim import motions as mo
+from biso_cosim.estimators import estimate_attitude, flags as fl, make_estimator
+from biso_cosim.metrics import angle_errors_deg
+
+
+def _tilt_deg(q, q_true):
+    e = angle_errors_deg(q, q_true)
+    return np.hypot(e["roll"], e["pitch"])
+
+
+def test_speed_compensation_removes_the_turn_tilt():
+    """Circle at 10 m/s, R = 30 m (0.34 g): faithful BISO tilts by about a/g, biso_plus with
+    speed does not, and without speed it cannot know (it tilts, less than the faithful one)."""
+    m = mo.make_motion("circle", 30.0, 200.0)
+    a_over_g = math.degrees(math.atan2(10.0 ** 2 / 30.0, 9.80665))
+    late = slice(int(20 * 200), None)
+    plus = make_estimator("biso_plus", 200.0).update(m.omega_b, m.specific_force_b, m.mag_b,
+                                                     speed_mps=m.info["speed_mps"])
+    assert np.all(plus.flags[1:] & fl.ACCEL_COMPENSATED)
+    assert np.max(_tilt_deg(plus.q_wb, m.q_wb)[late]) < 0.05
+    biso = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, 200.0, "biso")
+    assert np.mean(_tilt_deg(biso, m.q_wb)[late]) == pytest.approx(a_over_g, rel=0.05)
+    blind = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, 200.0, "biso_plus")
+    assert 0.5 < np.mean(_tilt_deg(blind, m.q_wb)[late]) < a_over_g
+
+
+def test_lever_arm_of_the_speed_point():
+    """Speed measured 2 m behind the IMU (a rear axle without sideslip): the IMU moves sideways
+    at ω × d; with speed_point_b_m the compensation is exact again."""
+    m = mo.make_motion("circle", 25.0, 200.0, speed_mps=8.0, radius_m=20.0, imu_ahead_m=2.0)
+    late = slice(int(15 * 200), None)
+    args = (m.omega_b, m.specific_force_b, m.mag_b)
+    with_arm = make_estimator("biso_plus", 200.0, speed_point_b_m=m.info["speed_point_b_m"]).update(
+        *args, speed_mps=m.info["speed_mps"])
+    without = make_estimator("biso_plus", 200.0).update(*args, speed_mps=m.info["speed_mps"])
+    assert np.max(_tilt_deg(with_arm.q_wb, m.q_wb)[late]) < 0.05
+    assert np.mean(_tilt_deg(without.q_wb, m.q_wb)[late]) > 0.5
+
+
+def test_gyro_bias_is_learned_at_rest_and_in_motion():
+    bias = np.array([0.02, -0.015, 0.01])  # rad/s (about 1 °/s)
+    m = mo.make_motion("static", 20.0, 200.0)
+    out = make_estimator("biso_plus", 200.0).update(m.omega_b + bias, m.specific_force_b, m.mag_b)
+    assert np.any(out.flags & fl.REST)
+    np.testing.assert_allclose(out.gyro_bias_b[-1], bias, atol=2e-4)
+    m = mo.make_motion("tumble", 60.0, 200.0, rate_scale=0.5)
+    out = make_estimator("biso_plus", 200.0).update(m.omega_b + bias, m.specific_force_b, m.mag_b)
+    assert not np.any(out.flags & fl.REST)
+    # in motion the bias filter is deliberately slow (VQF's tuning): more than half learned
+    assert np.linalg.norm(out.gyro_bias_b[-1] - bias) < 0.5 * np.linalg.norm(bias)
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-2000:], m.q_wb[-2000:]))) < 1.5
+
+
+def test_magnet_is_detected_and_does_not_turn_the_heading():
+    m = mo.make_motion("magnet", 30.0, 200.0)
+    plus = make_estimator("biso_plus", 200.0).update(m.omega_b, m.specific_force_b, m.mag_b)
+    near = m.info["distance_m"] < 0.15
+    assert np.all(plus.flags[near] & fl.MAG_DISTURBED)
+    err_plus = np.abs(angle_errors_deg(plus.q_wb, m.q_wb)["heading"])
+    biso = estimate_attitude(m.omega_b, m.specific_force_b, m.mag_b, 200.0, "biso")
+    err_biso = np.abs(angle_errors_deg(biso, m.q_wb)["heading"])
+    assert np.max(err_biso) > 30.0
+    assert np.max(err_plus) < 5.0 and np.sqrt(np.mean(err_plus ** 2)) < 1.5
+
+
+def test_magnetometer_offset_is_estimated():
+    offset = np.array([6.0, -4.0, 3.0])  # µT, body axes
+    m = mo.make_motion("tumble", 60.0, 200.0, rate_scale=0.5)
+    est = make_estimator("biso_plus", 200.0)
+    out = est.update(m.omega_b, m.specific_force_b, m.mag_b + offset)
+    np.testing.assert_allclose(est.get_state()["mag_offset_b"], offset, atol=0.3)
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-2000:], m.q_wb[-2000:]))) < 0.5
+    off = make_estimator("biso_plus", 200.0, estimate_mag_offset=False).update(m.omega_b, m.specific_force_b,
+                                                                               m.mag_b + offset)
+    assert np.degrees(np.max(fr.quat_angle_between(off.q_wb[-2000:], m.q_wb[-2000:]))) > 3.0
+
+
+def _noisy_reference(n, sigma, rng, q_true):
+    """Accelerometer and magnetometer samples whose λ_k is q_true turned by isotropic noise."""
+    noise = fr.quat_from_rotvec(sigma * rng.normal(size=(n, 3)))
+    qk = fr.quat_multiply(noise, np.tile(q_true, (n, 1)))
+    qc = fr.quat_conjugate(qk)
+    f = fr.quat_rotate(qc, np.array([0.0, 0.0, 9.80665]))
+    b = fr.quat_rotate(qc, np.array(mo.EARTH_FIELD_W))
+    # μ: length of the mean of λ_k (all in one hemisphere)
+    qk = qk * np.sign(qk @ q_true)[:, None]
+    return f, b, float(np.linalg.norm(qk.mean(axis=0)))
+
+
+def _mean_error_rotvec(q, q_true):
+    """World-frame rotation vector of the mean attitude (after the transient) against the truth."""
+    qm = q[len(q) // 4:].mean(axis=0)
+    qm /= np.linalg.norm(qm)
+    return fr.quat_to_rotvec(fr.quat_multiply(qm, fr.quat_conjugate(q_true)))
+
+
+def test_cross_link_bias_renormalised_versus_norm_term_versus_biso_plus():
+    """DESIGN.md §5: faithful BISO (k = √3 k_p) renormalised every step settles at a rotation
+    of 2·(asin(1/(μ√2)) − 45°) about (1, 1, 1) when λ_k is noisy (μ: length of the mean λ_k;
+    the formula is the fixed point of the averaged dynamics, met within 20 % at 1 kHz).
+
+    Measured here as well: the paper's own norm term (eq. (2), gain 1/s) keeps the dynamics
+    linear in λ and does not bias; biso_plus applies the correction as rotations of the
+    rotation error, which removes the renormalisation bias, but any cross-link on rotations
+    leaves a second-order "coning" drift (the noisy error spirals about (1, 1, 1)): with the
+    paper's k_p it is well below the renormalised bias, and with biso_plus's default k_p = 0
+    there is none."""
+    rng = np.random.default_rng(0)
+    fs, n = 1000.0, 20000
+    q_true = fr.quat_from_euler(0.1, -0.2, 0.7)
+    f, b, mu = _noisy_reference(n, 0.5, rng, q_true)
+    predicted = 2.0 * (math.asin(1.0 / (mu * math.sqrt(2.0))) - math.pi / 4)
+    gyro = np.zeros((n, 3))
+    err = _mean_error_rotvec(make_estimator("biso", fs, renormalize=True).update(gyro, f, b).q_wb, q_true)
+    axis = np.ones(3) / math.sqrt(3.0)
+    assert err @ axis == pytest.approx(predicted, rel=0.2)
+    assert np.linalg.norm(err - (err @ axis) * axis) < 0.1 * abs(err @ axis)  # about (1, 1, 1)
+    err_term = _mean_error_rotvec(make_estimator("biso", fs).update(gyro, f, b).q_wb, q_true)
+    assert np.linalg.norm(err_term) < 0.1 * predicted
+    plain = dict(k_tilt=44.4, k_heading=44.4, tau_acc_s=0.0, mag_dip_tol_rad=math.pi, mag_norm_tol=10.0,
+                 estimate_mag_offset=False, bias_sigma_init_rad_s=1e-9)
+    crossed = make_estimator("biso_plus", fs, k_p=25.64, **plain).update(gyro, f, b).q_wb
+    assert np.linalg.norm(_mean_error_rotvec(crossed, q_true)) < 0.5 * predicted
+    default = make_estimator("biso_plus", fs, **plain).update(gyro, f, b).q_wb
+    assert np.linalg.norm(_mean_error_rotvec(default, q_true)) < 0.05 * predicted
+
+
+def test_biso_plus_parameters_are_checked():
+    with pytest.raises(ValueError, match="tau_acc_s"):
+        make_estimator("biso_plus", 200.0, tau_acc_s=-1.0)
+    with pytest.raises(ValueError, match="speed_point_b_m"):
+        make_estimator("biso_plus", 200.0, speed_point_b_m=(1.0, 2.0))
+    with pytest.raises(TypeError, match="estimate_mag_offset"):
+        make_estimator("biso_plus", 200.0, estimate_mag_offset="yes")
+    with pytest.raises(ValueError, match="mag_norm_tol"):
+        make_estimator("biso_plus", 200.0, mag_norm_tol=0.0)
+
+
+def test_saturation_is_flagged_and_not_used_for_tilt():
+    m = mo.make_motion("static", 2.0, 200.0)
+    accel = m.specific_force_b.copy()
+    accel[100:120] = [39.2, 0.0, 0.0]  # clipped at ±4 g on x
+    out = make_estimator("biso_plus", 200.0, accel_range_mps2=39.2266).update(m.omega_b, accel, m.mag_b)
+    assert np.all(out.flags[100:120] & fl.SATURATED)
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb, m.q_wb))) < 0.01
+
+
+def test_dcm_pi_converges_and_estimates_the_bias():
+    bias = np.array([0.01, -0.02, 0.015])
+    m = mo.make_motion("static", 120.0, 100.0)
+    out = make_estimator("dcm_pi", 100.0).update(m.omega_b + bias, m.specific_force_b, m.mag_b)
+    np.testing.assert_allclose(out.gyro_bias_b[-1], bias, atol=1e-3)
+    assert np.degrees(fr.quat_angle_between(out.q_wb[-1], m.q_wb[-1])) < 0.1
