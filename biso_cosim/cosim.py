@@ -71,12 +71,15 @@ class _UserEstimator:
 
     def update(self, gyro_b, accel_b, mag_b) -> Estimate:
         out = self.instance.update(gyro_b, accel_b, mag_b)
-        q = np.asarray(getattr(out, "q_wb", out), dtype=np.float64)
         k = gyro_b.shape[0]
+        if isinstance(out, np.ndarray):  # (an ndarray's own .flags are memory flags)
+            q, flags = out, None
+        else:
+            q, flags = getattr(out, "q_wb", out), getattr(out, "flags", None)
+        q = np.asarray(q, dtype=np.float64)
         if q.shape != (k, 4):
             raise ValueError(f"estimator {self.label!r}: update() returned shape {q.shape}, expected ({k}, 4) q_wb")
-        flags = getattr(out, "flags", None)
-        flags = np.zeros(k, dtype=np.int64) if flags is None else np.asarray(flags)
+        flags = np.zeros(k, dtype=np.int64) if flags is None else np.asarray(flags, dtype=np.int64).reshape(k)
         return Estimate(q_wb=q, flags=flags)
 
 

@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
             "and imufusion need the optional extra 'compare' (pip install biso_cosim[compare])."
         ),
     )
-    p.add_argument("--routes", type=_csv, default=["figure8", "loop600"], metavar="A,B",
-                   help="library routes (default figure8,loop600; '' for none)")
+    p.add_argument("--routes", type=_csv, default=None, metavar="A,B",
+                   help="library routes (default: every shipped route; '' for none)")
     p.add_argument("--motions", type=_csv, default=list(DEFAULT_MOTIONS), metavar="A,B",
                    help=f"test motions (default {','.join(DEFAULT_MOTIONS)}; '' for none)")
     p.add_argument("--seeds", type=_ints, default=[0], metavar="0,1", help="sensor seeds (default 0)")
@@ -47,8 +47,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from biso_cosim.compare import compare, format_table, write
+    from biso_cosim.routes import route_names
 
-    result = compare(args.routes, args.motions, args.seeds, args.methods,
+    routes = route_names() if args.routes is None else args.routes
+    result = compare(routes, args.motions, args.seeds, args.methods,
                      route_duration_s=args.route_duration, motion_duration_s=args.motion_duration,
                      progress=lambda msg: print(f"  {msg}", file=sys.stderr))
     print(format_table(result))

@@ -1,0 +1,206 @@
+"""Scripted driving-route tests: drive a route with an estimator, assert its attitude errors.
+
+A test reads like the requirement it checks::
+
+    from biso_cosim.testing import drive
+
+    def test_my_estimator_holds_tilt_on_hills():
+        run = drive("hill_climb", estimator=MyEstimator(), seed=0)
+        run.assert_max_error(roll=1.0, pitch=1.0)          # degrees, over the whole drive
+
+``estimator`` is a library name (``"biso"``), a ``(name, params)`` pair, or your own object
+with ``update(gyro_b, accel_b, mag_b)`` returning the (k, 4) ``q_wb`` of the k samples it was
+given (see :class:`biso_cosim.cosim.CoSimulation`). A failing assertion says which angle,
+when it first went over, how long it stayed over, and the largest error with where on the
+route it happened.
+
+Runs of library estimators are cached for the session, keyed by everything that makes a run
+(the route's content, the estimator and its parameters, the seed, the duration, the sensor
+options), so a suite that drives the same route several times simulates it once, and a
+changed route file is a different key: nothing stale comes back. Runs with your own
+estimator objects are never cached (they hold state).
+
+With pytest, the plugin (registered automatically) offers the fixture ``drive_route`` (this
+``drive``) and the marker ``biso_route``::
+
+    @pytest.mark.biso_route("hill_climb", estimator="biso", seed=0, duration_s=60)
+    def test_hill(route_run):
+        route_run.assert_rms_error(roll=0.5)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from biso_cosim.metrics import ANGLES
+
+__all__ = ["drive", "DriveResult", "AttitudeErrorExceeded", "clear_cache"]
+
+_ALL = (*ANGLES, "total")
+_CACHE: dict[tuple, Any] = {}
+
+
+class AttitudeErrorExceeded(AssertionError):
+    """An attitude error went over its bound; the message says where and by how much."""
+
+
+def clear_cache() -> None:
+    """Forget the cached runs."""
+    _CACHE.clear()
+
+
+def _cache_key(route, estimator, seed, duration_s, options) -> tuple | None:
+    if isinstance(estimator, str):
+        est = (estimator, ())
+    elif (isinstance(estimator, tuple) and len(estimator) == 2 and isinstance(estimator[0], str)
+          and isinstance(estimator[1], Mapping)):
+        est = (estimator[0], tuple(sorted((k, repr(v)) for k, v in estimator[1].items())))
+    else:
+        return None  # a user's object: never cached
+    try:
+        hash(route)
+    except TypeError:
+        return None
+    return route, est, seed, duration_s, tuple(sorted((k, repr(v)) for k, v in options.items()))
+
+
+def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: float | None = None,
+          label: str | None = None, **options: Any) -> "DriveResult":
+    """Drive ``route`` (name, file or Route) with ``estimator`` in the loop; see the module doc.
+
+    ``options`` go to :class:`biso_cosim.cosim.CoSimulation` (``sensor_profile``,
+    ``registers``, ``mounting``, ``gyro_calibration_s``, ``control_rate_hz``, ...).
+    """
+    from biso_cosim.cosim import CoSimulation, EstimatorSpec
+    from biso_cosim.routes import load_route
+
+    route = load_route(route)
+    key = _cache_key(route, estimator, seed, duration_s, options)
+    if key is not None and key in _CACHE:
+        run = _CACHE[key]
+    else:
+        if isinstance(estimator, tuple):
+            spec = EstimatorSpec(estimator[0], dict(estimator[1]), label=label or "")
+        elif isinstance(estimator, str):
+            spec = EstimatorSpec(estimator, label=label or "")
+        else:
+            spec = estimator
+        run = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=[spec], **options).run()
+        if key is not None:
+            _CACHE[key] = run
+    return DriveResult(run, next(iter(run.estimates)))
+
+
+@dataclass(frozen=True)
+class DriveResult:
+    """One estimator's drive: errors, flags, figures, and assertions on them.
+
+    ``run`` is the whole :class:`biso_cosim.cosim.RunResult` (truth, sensor samples, logs).
+    """
+
+    run: Any
+    key: str
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.run.t_s
+
+    @property
+    def errors(self) -> dict[str, np.ndarray]:
+        """Per-sample errors in degrees: roll, pitch, heading (wrapped) and total."""
+        return self.run.errors(self.key)
+
+    @property
+    def flags(self) -> np.ndarray:
+        return self.run.estimates[self.key][1]
+
+    @property
+    def summary(self) -> dict:
+        """This estimator's entry of the run summary (RMS, max, start-to-end ...)."""
+        return self.run.summary()["estimators"][self.key]
+
+    def _name(self) -> str:
+        return f"{self.run.route.name} with {self.key} (seed {self.run.seed})"
+
+    def _where(self, index: int) -> str:
+        p = self.run.truth.pos_w[index]
+        s = self.run.route.path.locate(float(p[0]), float(p[1]), 0, back=0, ahead=len(self.run.route.path))[1]
+        return f"t = {self.t_s[index]:.2f} s, about {s:.0f} m along the route"
+
+    @staticmethod
+    def _bounds(given: dict[str, float | None]) -> dict[str, float]:
+        out = {}
+        for angle, bound in given.items():
+            if bound is None:
+                continue
+            if not (isinstance(bound, (int, float)) and math.isfinite(bound) and bound > 0):
+                raise ValueError(f"{angle}: the bound must be a positive number of degrees, got {bound!r}")
+            out[angle] = float(bound)
+        if not out:
+            raise ValueError(f"give at least one bound: {', '.join(_ALL)}")
+        return out
+
+    def assert_max_error(self, roll: float | None = None, pitch: float | None = None,
+                         heading: float | None = None, total: float | None = None, *,
+                         after_s: float = 0.0) -> None:
+        """Every |error| (degrees) stays within its bound from ``after_s`` on."""
+        bounds = self._bounds({"roll": roll, "pitch": pitch, "heading": heading, "total": total})
+        window = self.t_s >= after_s
+        if not window.any():
+            raise ValueError(f"after_s = {after_s} s leaves no samples (the drive lasted {self.t_s[-1]:.1f} s)")
+        problems = []
+        dt = float(np.median(np.diff(self.t_s))) if self.t_s.shape[0] > 1 else 0.0
+        for angle, bound in bounds.items():
+            err = np.abs(self.errors[angle])
+            over = window & (err > bound)
+            if over.any():
+                first = int(np.argmax(over))
+                worst = int(np.flatnonzero(window)[np.argmax(err[window])])
+                problems.append(
+                    f"{angle} error over {bound:g}° for {over.sum() * dt:.1f} s of {window.sum() * dt:.1f} s: "
+                    f"first at {self._where(first)} ({err[first]:.2f}°); largest {err[worst]:.2f}° at "
+                    f"{self._where(worst)}")
+        if problems:
+            raise AttitudeErrorExceeded(f"{self._name()}:\n  " + "\n  ".join(problems))
+
+    def assert_rms_error(self, roll: float | None = None, pitch: float | None = None,
+                         heading: float | None = None, total: float | None = None, *,
+                         after_s: float = 0.0) -> None:
+        """The RMS error (degrees) of each angle from ``after_s`` on is within its bound."""
+        bounds = self._bounds({"roll": roll, "pitch": pitch, "heading": heading, "total": total})
+        window = self.t_s >= after_s
+        problems = []
+        for angle, bound in bounds.items():
+            rms = float(np.sqrt(np.mean(self.errors[angle][window] ** 2)))
+            if rms > bound:
+                problems.append(f"{angle} RMS error {rms:.3f}° is over {bound:g}° (from t = {after_s:g} s)")
+        if problems:
+            raise AttitudeErrorExceeded(f"{self._name()}:\n  " + "\n  ".join(problems))
+
+    def assert_closure(self, roll: float | None = None, pitch: float | None = None,
+                       heading: float | None = None) -> None:
+        """On a closed route driven to its end: |(end − start of the estimate) − (end − start of
+        the truth)| within the bounds (degrees); the paper's start-to-end test."""
+        bounds = self._bounds({"roll": roll, "pitch": pitch, "heading": heading})
+        entry = self.summary
+        if "start_end_error_deg" not in entry:
+            raise AssertionError(f"{self._name()}: no start-to-end figures: the route is open or was not "
+                                 "driven to its end (give a longer duration_s)")
+        problems = [f"{a} start-to-end error {entry['start_end_error_deg'][a]:+.3f}° is over ±{b:g}°"
+                    for a, b in bounds.items() if abs(entry["start_end_error_deg"][a]) > b]
+        if problems:
+            raise AttitudeErrorExceeded(f"{self._name()}:\n  " + "\n  ".join(problems))
+
+    def assert_completed(self, max_cross_track_m: float = 1.0) -> None:
+        """The car reached the end of the route and the driver never strayed further than
+        ``max_cross_track_m`` from it."""
+        worst = float(np.max(np.abs(self.run.cross_track_m)))
+        if not self.run.completed:
+            raise AssertionError(f"{self._name()}: the route was not completed in {self.run.duration_s:.0f} s")
+        if worst > max_cross_track_m:
+            raise AssertionError(f"{self._name()}: the driver was {worst:.2f} m off the route "
+                                 f"(bound {max_cross_track_m:g} m)")
