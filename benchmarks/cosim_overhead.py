@@ -6,7 +6,7 @@ the same model, from the same settled start, replaying the same actuator command
 physics does the same work), in the same process; and their ratio. Also the share of each
 layer, timed separately over one run.
 
-    python benchmarks/cosim_overhead.py                 # loop600 and figure8, 120 s each
+    python benchmarks/cosim_overhead.py                 # every shipped route, 60 s each
     python benchmarks/cosim_overhead.py --routes loop600 --duration 600
 """
 
@@ -79,8 +79,8 @@ def layers(sim: CoSimulation) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--routes", nargs="+", default=["loop600", "figure8"], choices=route_names())
-    parser.add_argument("--duration", type=float, default=120.0, help="simulated seconds per route")
+    parser.add_argument("--routes", nargs="+", default=route_names(), choices=route_names())
+    parser.add_argument("--duration", type=float, default=60.0, help="simulated seconds per route")
     parser.add_argument("--repeat", type=int, default=3, help="repetitions; the best of each is kept")
     args = parser.parse_args()
     print(f"{'route':<10} {'steps':>8} {'cosim s':>9} {'bare s':>9} {'ratio':>7} {'µs/step':>8} {'bare µs':>8}")

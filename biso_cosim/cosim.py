@@ -167,10 +167,25 @@ class CoSimulation:
                 continue
             params = dict(spec.params)
             params.setdefault("declination_rad", self.earth.declination_rad)
-            self.estimators[spec.key] = make_estimator(spec.name, self.imu.output_rate_hz, **params)
+            est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
+            self.estimators[spec.key] = est
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
         self._calibrate_gyro()
         self._reset_logs()
+
+    def _speed_geometry(self, name: str, params: Mapping[str, Any]) -> dict[str, Any]:
+        """Where the wheel-odometry speed is measured, for estimators that take a speed."""
+        from biso_cosim.estimators import estimator_inputs
+
+        if "speed_mps" not in estimator_inputs(name) or "speed_point_b_m" in params:
+            return {}
+        ix = self.vehicle.index
+        return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b)}
+
+    def _odometry_mps(self, truth: Truth) -> np.ndarray:
+        """Wheel odometry: the mean spin rate of the rear wheels times the wheel radius (the
+        speed of the rear axle's centre, negative in reverse)."""
+        return 0.5 * (truth.wheel_rates[:, 2] + truth.wheel_rates[:, 3]) * self.vehicle.index.wheel_radius_m
 
     # ------------------------------------------------------------------ running
     def reset(self) -> None:
@@ -216,6 +231,10 @@ class CoSimulation:
         With ``command`` the car is driven by it for this period instead of by the scripted
         driver (for agents that drive); the driver still tracks progress along the route.
         """
+        return self._sense(self._drive(command))
+
+    def _drive(self, command: DriverCommand | None = None) -> Truth:
+        """Driver (or the given command) and physics for one control period."""
         vehicle = self.vehicle
         if command is None:
             vehicle.drive()
@@ -223,23 +242,44 @@ class CoSimulation:
             vehicle.observe_route()
             vehicle.apply(command)
         truth = vehicle.step()
+        self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
+        self._chunks_done += 1
+        return truth
+
+    def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
         mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
         samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b)
         samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
         samples.gyro_b -= self.gyro_offset_b
         at_samples = self._truth_at(samples.t_s, truth)
-        outputs = {key: est.update(samples.gyro_b, samples.accel_b, samples.mag_b)
-                   for key, est in self.estimators.items()}
+        outputs = {}
+        for key, est in self.estimators.items():
+            if "speed_mps" in getattr(est, "inputs", ()):
+                outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b,
+                                          speed_mps=self._odometry_mps(at_samples))
+            else:
+                outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b)
         self._log["truth"].append(at_samples)
         self._log["imu"].append(samples)
-        self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
         for key, out in outputs.items():
             self._est_log[key].append(out)
-        self._chunks_done += 1
         return samples, at_samples, outputs
 
-    def run(self, progress: bool = False) -> "RunResult":
-        """Run to ``duration_s`` from wherever the simulation stands; the whole log so far."""
+    def run(self, progress: bool = False, block_periods: int | None = None) -> "RunResult":
+        """Run to ``duration_s`` from wherever the simulation stands; the whole log so far.
+
+        The driver and the physics advance one control period at a time; the sensor and the
+        estimators receive ``block_periods`` periods at once. Nothing in a scripted run reads
+        the estimates in between, and the sensor and the library's estimators stream exactly,
+        so the results are the same bit for bit as with ``step()``, in a tenth of the Python
+        calls. Default: 10 periods, or 1 when a user's estimator is in the loop (it is called
+        once per control period, as documented, in case it is not chunk-invariant).
+        """
+        if block_periods is None:
+            block_periods = 1 if any(isinstance(e, _UserEstimator) for e in self.estimators.values()) else 10
+        if isinstance(block_periods, bool) or not isinstance(block_periods, int) or block_periods < 1:
+            raise ValueError(f"block_periods must be a positive integer, got {block_periods!r}")
         start = time.perf_counter()
         bar = None
         if progress:
@@ -247,8 +287,12 @@ class CoSimulation:
 
             bar = tqdm(total=round(self.duration_s), unit="sim s", desc=self.route.name, leave=False)
         per_second = max(int(round(self.vehicle.control_rate_hz)), 1)
+        block: list[Truth] = []
         while not self.done:
-            self.step()
+            block.append(self._drive())
+            if len(block) == block_periods or self.done:
+                self._sense(Truth.concatenate(block))
+                block = []
             if bar is not None and self._chunks_done % per_second == 0:
                 bar.update(1)
         if bar is not None:

@@ -111,7 +111,7 @@ def test_cli_run_writes_summary_log_and_plot(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "biso" in printed and "poisson" in printed and "RMS" in printed
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["estimators"]) == {"biso", "poisson"}
+    assert set(summary["estimators"]) == {"biso", "biso_plus", "poisson"}
     assert (out / "attitude.png").stat().st_size > 10_000
     header = (out / "log.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "t_s" and "biso_qw" in header and "gyro_x_rad_s" in header
@@ -135,3 +135,18 @@ def test_cli_errors_are_one_line_and_name_the_problem(tmp_path, capsys):
     bad.write_text("t_s,gyro_x_rad_s\n0,1\n")
     assert cli_main(["estimate", str(bad), "--out", str(tmp_path / "o.csv")]) == 2
     assert "missing column" in capsys.readouterr().err
+
+
+def test_blocked_run_equals_stepping_period_by_period():
+    blocked = CoSimulation("figure8", duration_s=5.0, seed=4)
+    a = blocked.run(block_periods=7)
+    stepped = CoSimulation("figure8", duration_s=5.0, seed=4)
+    while not stepped.done:
+        stepped.step()
+    b = stepped.result()
+    np.testing.assert_array_equal(a.truth.packed, b.truth.packed)
+    np.testing.assert_array_equal(a.imu.mag_b, b.imu.mag_b)
+    for key in a.estimates:
+        np.testing.assert_array_equal(a.estimates[key][0], b.estimates[key][0])
+    with pytest.raises(ValueError, match="block_periods"):
+        blocked.run(block_periods=0)

@@ -10,6 +10,7 @@ from pathlib import Path
 from biso_cosim.cli import UserError
 
 BASELINE = "poisson"
+DEFAULT_ESTIMATORS = ("biso", "biso_plus")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,8 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="simulated seconds (default: the route's nominal duration + 10 s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor errors (default 0)")
     p.add_argument("--estimator", action="append", metavar="NAME",
-                   help="estimator to run (repeatable); default biso. The uncorrected integration "
-                        f"'{BASELINE}' runs too, as the baseline, unless --no-baseline")
+                   help="estimator to run (repeatable); default: biso (the paper's) and biso_plus (its "
+                        f"vehicle variant, with wheel odometry). The uncorrected integration '{BASELINE}' "
+                        "runs too, as the baseline, unless --no-baseline")
     p.add_argument("--no-baseline", action="store_true", help=f"do not add the '{BASELINE}' baseline")
     p.add_argument("--sensor-profile", default=None, metavar="NAME|FILE",
                    help="MPU-9250 profile: mpu9250_calibrated (default: the chip after the usual start-up "
@@ -98,7 +100,7 @@ def main(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")
     route = load_route(args.route)
-    names = list(dict.fromkeys(args.estimator or ["biso"]))
+    names = list(dict.fromkeys(args.estimator or DEFAULT_ESTIMATORS))
     if not args.no_baseline and BASELINE not in names:
         names.append(BASELINE)
     out = Path(args.out or Path("out") / route.name)

@@ -18,10 +18,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 
 from biso_cosim.estimators import flags
-from biso_cosim.estimators._base import Estimate, Estimator, State, param_table
+from biso_cosim.estimators._base import Estimate, Estimator, State, param_markdown, param_table
 from biso_cosim.estimators.biso import BisoEstimator, BisoParams
 from biso_cosim.estimators.biso_plus import BisoPlusEstimator, BisoPlusParams
 from biso_cosim.estimators.dcm_pi import DcmPiEstimator, DcmPiParams
@@ -30,8 +29,10 @@ from biso_cosim.estimators.reference import reference_attitude
 __all__ = [
     "make_estimator",
     "estimator_names",
+    "estimator_inputs",
     "estimate_attitude",
     "describe_estimator",
+    "params_markdown",
     "reference_attitude",
     "Estimate",
     "Estimator",
@@ -71,6 +72,12 @@ def _entry(name: str) -> tuple[type, dict[str, Any], str]:
     if not isinstance(name, str) or name not in _REGISTRY:
         raise ValueError(f"unknown estimator {name!r}; known: {', '.join(_REGISTRY)}")
     return _REGISTRY[name]
+
+
+def estimator_inputs(name: str) -> tuple[str, ...]:
+    """Optional per-sample inputs the estimator ``name`` takes besides gyro, accel and mag
+    (e.g. ``("speed_mps",)``)."""
+    return tuple(_entry(name)[0].inputs)
 
 
 def describe_estimator(name: str) -> dict[str, Any]:
@@ -121,3 +128,13 @@ def estimate_attitude(gyro, accel, mag, fs, method: str = "biso", *, q0=None,
         est.reset(q0=q0)
     out = est.update(gyro, accel, mag)
     return out if full_output else out.q_wb
+
+
+def params_markdown(name: str) -> str:
+    """The parameter table of an estimator in Markdown (docs/estimators.md is generated from it)."""
+    cls, fixed, _ = _entry(name)
+    table = param_markdown(cls.Params)
+    if not fixed:
+        return table
+    keep = [line for line in table.splitlines() if not any(line.startswith(f"| `{f}` ") for f in fixed)]
+    return "\n".join(keep)

@@ -17,7 +17,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["Estimate", "State", "Estimator", "param", "param_table", "as_samples"]
+__all__ = ["Estimate", "State", "Estimator", "param", "param_table", "param_markdown", "as_samples",
+           "layout_offsets"]
 
 
 # --------------------------------------------------------------------------------------
@@ -44,10 +45,12 @@ def param_table(params_cls: type) -> list[dict[str, Any]]:
 def param_markdown(params_cls: type) -> str:
     """The parameter table of a record as Markdown (for docs/estimators.md)."""
     lines = ["| parameter | symbol | unit | default | meaning | source |", "|---|---|---|---|---|---|"]
+    def cell(text: Any) -> str:
+        return str(text).replace("|", "\\|")
+
     for r in param_table(params_cls):
-        lines.append(
-            f"| `{r['name']}` | {r['symbol']} | {r['unit']} | `{r['default']!r}` | {r['doc']} | {r['source']} |"
-        )
+        lines.append(f"| `{r['name']}` | {cell(r['symbol'])} | {cell(r['unit'])} | `{r['default']!r}` | "
+                     f"{cell(r['doc'])} | {cell(r['source'])} |")
     return "\n".join(lines)
 
 
@@ -66,6 +69,17 @@ def check_finite(name: str, value: Any, *, low: float | None = None, high: float
     if high is not None and x > high:
         raise ValueError(f"{name} must be <= {high}, got {value!r}")
     return x
+
+
+def layout_offsets(parts: tuple[tuple[str, int], ...]) -> dict[str, int]:
+    """Offsets of named parts laid end to end in a flat array, plus ``"_size"``: one source
+    for a kernel's index constants and the names of ``State`` parts."""
+    out, i = {}, 0
+    for name, size in parts:
+        out[name] = i
+        i += size
+    out["_size"] = i
+    return out
 
 
 # --------------------------------------------------------------------------------------

@@ -21,19 +21,23 @@ magnetometer give. What it adds, each for a weakness DESIGN.md §5 and issue 4 n
   lag from the vehicle's rotation; samples whose |f| is far from g are down-weighted (gating);
 * **magnetic disturbance detection**: the field's norm and dip (with the estimated tilt)
   against the expected field (learned while undisturbed, or given); a disturbed field is not
-  used for heading, nor for learning;
+  used for heading, nor for learning the expected field;
 * **hard-iron (offset) estimation**: ``m = R_Ibᵀ B_I + o`` is linear in the field in the
   I frame and the offset o, with R_Ib from the gyro strapdown alone (no feedback from the
-  heading correction): a six-state Kalman filter with random walks, decimated; the
-  offset prior keeps the parts that level driving cannot observe (o_z against B_z) near 0;
+  heading correction): a six-state Kalman filter with random walks, decimated, with its own
+  innovation gate (a magnet is rejected there), learning only once the gyro bias is known;
+  the offset prior keeps what level driving cannot observe (o_z against B_z) near 0;
 * **decoupled corrections**: tilt about horizontal world axes from the accelerometer only,
   heading about Up from the magnetometer only, so a magnetic disturbance cannot tilt the
   estimate and an acceleration cannot turn its heading;
-* **a cross-link that cannot bias**: the correction acts on the rotation-vector error ε
-  (world frame) as ``ω_c = K ε + k_p (1, 1, 1) × ε`` and is applied as a rotation, so the
-  estimate stays a unit quaternion and no norm dynamics exist: with zero-mean noise on the
-  reference the mean correction at the true attitude is zero, unlike ``λ − λ_k`` with
-  renormalisation (DESIGN.md §5; ``reproduce`` shows both).
+* **a cross-link without the renormalisation bias**: the paper's cross-link acts on the
+  rotation-vector error ε (world frame), ``ω_c = K ε + k_p (1, 1, 1) × ε``, applied as a
+  rotation: the estimate stays a unit quaternion, there are no norm dynamics, and the bias
+  of ``λ − λ_k`` with renormalisation (DESIGN.md §5) is gone. A cross-link on rotations still
+  leaves a second-order "coning" drift when the reference is very noisy (the noisy error
+  spirals about (1, 1, 1)); measured, it is well below the renormalisation bias, and with
+  the default k_p = 0 (chosen by measurement: the cross-link never improved accuracy) there
+  is none (tests/test_estimator_plus.py).
 
 The attitude is ``λ = q_c ∘ q_I``: q_I integrates the bias-corrected gyro exactly (held rate
 over each sample interval), q_c (I → ENU) carries every correction.
@@ -54,10 +58,10 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.estimators import flags as fl
-from biso_cosim.estimators._base import Estimator, as_series, check_finite, param
-from biso_cosim.estimators.biso import _input_checks
+from biso_cosim.estimators._base import Estimator, as_series, check_finite, layout_offsets, param
+from biso_cosim.estimators.biso import _input_checks, _qexp_fast
 from biso_cosim.estimators.reference import _ref_vector
-from biso_cosim.frames import _mat_from_q, _qexp_rotvec, _qmul, _qnormalize, _qrot
+from biso_cosim.frames import _mat_from_q, _qmul, _qrot
 from biso_cosim.units import DEG, G0
 
 __all__ = ["BisoPlusParams", "BisoPlusEstimator"]
@@ -183,16 +187,6 @@ class BisoPlusParams:
         doc="accelerometer full scale (flag SATURATED; the sample is not used for tilt); None = no check", source="")
 
 
-def _layout(*parts: tuple[str, int]) -> dict[str, int]:
-    """Offsets of named parts laid end to end (one source for indices and State names)."""
-    out, i = {}, 0
-    for name, size in parts:
-        out[name] = i
-        i += size
-    out["_size"] = i
-    return out
-
-
 STATE_LAYOUT = (
     ("initialized", 1), ("lam", 4), ("q_i", 4), ("q_c", 4), ("gyro_bias_b", 3), ("bias_cov", 9),
     ("accel_lp_i", 3), ("rot_lp", 9), ("rot_bias_lp", 3), ("gyro_hold", 3), ("rest_gyro_lp", 3),
@@ -201,7 +195,7 @@ STATE_LAYOUT = (
     ("offset_count", 1), ("field_norm", 1), ("field_dip", 1), ("field_known", 1), ("mag_rejected_s", 1),
     ("time_s", 1), ("offset_started", 1),
 )
-_S = _layout(*STATE_LAYOUT)
+_S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
  _S_REJ_T, _S_TIME, _S_OFF_INIT) = (_S[name] for name, _ in STATE_LAYOUT)
@@ -216,7 +210,7 @@ _COEF_LAYOUT = (
     ("cdh", 1), ("sdh", 1), ("r_v", 3), ("a_speed", 1), ("g", 1), ("gyro_range", 1), ("accel_range", 1),
     ("offset_bias2", 1),
 )
-_C = _layout(*_COEF_LAYOUT)
+_C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
  _C_BLIM, _C_REST_N, _C_A_REST, _C_REST_W, _C_REST_A, _C_REST_V, _C_BTOL, _C_DTOL, _C_REJ_N, _C_A_FIELD,
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
@@ -310,6 +304,23 @@ def biso_plus_initial_state(q0: np.ndarray | None, params: BisoPlusParams) -> np
 # --------------------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------------------
+
+
+@jit
+def _atan2(y, x):
+    """atan2 with a series for small angles (|y| ≤ 0.1 x: error below 1e-12 rad), which
+    covers nearly every correction step and avoids the library call."""
+    if x > 0.0 and abs(y) <= 0.1 * x:
+        t = y / x
+        t2 = t * t
+        return t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0 - t2 * (1.0 / 9.0 - t2 / 11.0)))))
+    return math.atan2(y, x)
+
+
+@jit
+def _unit(w, x, y, z):
+    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    return w * n, x * n, y * n, z * n
 
 
 @jit
@@ -495,24 +506,25 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
     # ---- gyro: bias-corrected strapdown of q_I over the interval (held rate)
     bx, by, bz = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
     wx, wy, wz = gx - bx, gy - by, gz - bz
-    eb = _qexp_rotvec(wx * h, wy * h, wz * h)
+    eb = _qexp_fast(wx * h, wy * h, wz * h)
     qi = _qmul(st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3], eb[0], eb[1], eb[2], eb[3])
-    qiw, qix, qiy, qiz = _qnormalize(qi[0], qi[1], qi[2], qi[3])
+    qiw, qix, qiy, qiz = _unit(qi[0], qi[1], qi[2], qi[3])
     st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
     qcw, qcx, qcy, qcz = st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3]
     lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
 
     # ---- speed: acceleration of the IMU from the speed v of the point r_v of the vehicle
     a_v = c[_C_A_SPEED]
+    fs = 1.0 / h
     w = (wx, wy, wz)
     for i in range(3):
-        st[_S_WDOT + i] += a_v * ((w[i] - st[_S_WPREV + i]) / h - st[_S_WDOT + i])
+        st[_S_WDOT + i] += a_v * ((w[i] - st[_S_WPREV + i]) * fs - st[_S_WDOT + i])
         st[_S_WPREV + i] = w[i]
     v_ok = speed_given and math.isfinite(speed)
     comp_x = comp_y = comp_z = 0.0
     if v_ok:
         if st[_S_VOK] != 0.0:
-            st[_S_DVDT] += a_v * ((speed - st[_S_VPREV]) / h - st[_S_DVDT])
+            st[_S_DVDT] += a_v * ((speed - st[_S_VPREV]) * fs - st[_S_DVDT])
         st[_S_VPREV] = speed
         # IMU velocity u = (v, 0, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
         dx, dy, dz = -c[_C_RV], -c[_C_RV + 1], -c[_C_RV + 2]
@@ -565,7 +577,7 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
         nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2])
         s = math.sqrt(nx * nx + ny * ny)
         if s > 0.0:  # rotate about n × up by the angle between n and up
-            ang = math.atan2(s, nz) / s
+            ang = _atan2(s, nz) / s
             ex, ey = ny * ang, -nx * ang
 
     # ---- heading error from the magnetometer (offset removed), disturbance detection
@@ -582,7 +594,7 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
         mwx, mwy, mwz = _qrot(lw, lx, ly, lz, cx, cy, cz)
         mh = math.sqrt(mwx * mwx + mwy * mwy)
         norm = math.sqrt(mh * mh + mwz * mwz)
-        dip = math.atan2(-mwz, mh)
+        dip = _atan2(-mwz, mh)
         if st[_S_FIELD_OK] == 0.0:
             st[_S_BNORM] = norm if c[_C_BNORM] < 0.0 else c[_C_BNORM]
             st[_S_DIP] = dip if math.isnan(c[_C_DIP]) else c[_C_DIP]
@@ -601,13 +613,11 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
             if math.isnan(c[_C_DIP]):
                 st[_S_DIP] += af * (dip - st[_S_DIP])
             if mh > 0.0:
-                # azimuth of the measured field (clockwise from north) minus the declination;
-                # turning the estimate about Up by it brings the field to the declination
-                ez = math.atan2(mwx, mwy) - c[_C_DECL]
-                if ez > math.pi:
-                    ez -= 2.0 * math.pi
-                elif ez < -math.pi:
-                    ez += 2.0 * math.pi
+                # the field's azimuth (clockwise from north) minus D, from the horizontal field
+                # turned by −D; turning the estimate about Up by it brings the field to D
+                cd = c[_C_CDH] * c[_C_CDH] - c[_C_SDH] * c[_C_SDH]
+                sd = 2.0 * c[_C_SDH] * c[_C_CDH]
+                ez = _atan2(mwx * cd - mwy * sd, mwy * cd + mwx * sd)
 
     # ---- the correction ω_c = K ε + k_p n × ε as a rotation of q_c (world frame)
     kt = c[_C_KT]
@@ -617,9 +627,9 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
     uy = kt * ey + kp * (ex - ez)
     uz = kh * ez + kp * (ey - ex)
     if ux != 0.0 or uy != 0.0 or uz != 0.0:
-        dq = _qexp_rotvec(ux * h, uy * h, uz * h)
+        dq = _qexp_fast(ux * h, uy * h, uz * h)
         qc = _qmul(dq[0], dq[1], dq[2], dq[3], qcw, qcx, qcy, qcz)
-        qcw, qcx, qcy, qcz = _qnormalize(qc[0], qc[1], qc[2], qc[3])
+        qcw, qcx, qcy, qcz = _unit(qc[0], qc[1], qc[2], qc[3])
         st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3] = qcw, qcx, qcy, qcz
         lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
 
@@ -646,7 +656,7 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
         wv = c[_C_BWV] if ez != 0.0 else c[_C_BWV] * 1e6
         _bias_update(c, st, hm, e0, e1, e2, c[_C_BWM], c[_C_BWM], wv)
 
-    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = _qnormalize(lw, lx, ly, lz)
+    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = _unit(lw, lx, ly, lz)
     return flags
 
 

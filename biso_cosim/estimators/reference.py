@@ -34,7 +34,6 @@ from biso_cosim.frames import (
     _gost_lambda_from_angles,
     _gost_lambda_from_q,
     _q_from_gost_lambda,
-    _q_from_mat,
     _qmul,
     _qrot_inv,
 )
@@ -63,13 +62,43 @@ def _vec_norm_ok(x, y, z, lo, hi):
 
 
 @jit
-def _mag_usable(ux, uy, uz, mx, my, mz):
-    """Whether the field (already checked finite, non-zero) has a horizontal part w.r.t. up."""
-    cx = my * uz - mz * uy
-    cy = mz * ux - mx * uz
-    cz = mx * uy - my * ux
+def _vec_ok(x, y, z, lo, hi):
+    """Finite and lo < |v| < hi, without the square root."""
+    n2 = x * x + y * y + z * z
+    return math.isfinite(n2) and n2 > lo * lo and n2 < hi * hi
+
+
+@jit
+def _mag_usable(fx, fy, fz, mx, my, mz):
+    """Whether the field (finite, non-zero) has a part across f (finite, non-zero): a heading."""
+    cx = my * fz - mz * fy
+    cy = mz * fx - mx * fz
+    cz = mx * fy - my * fx
     m2 = mx * mx + my * my + mz * mz
-    return cx * cx + cy * cy + cz * cz > (MAG_PARALLEL_SIN * MAG_PARALLEL_SIN) * m2
+    f2 = fx * fx + fy * fy + fz * fz
+    return cx * cx + cy * cy + cz * cz > (MAG_PARALLEL_SIN * MAG_PARALLEL_SIN) * m2 * f2
+
+
+@jit
+def _q_from_rows(r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """Shepperd's method for an orthonormal matrix (rows built so): unit to rounding, no
+    renormalisation, one square root (frames._q_from_mat also normalises)."""
+    trace = r00 + r11 + r22
+    if trace >= r00 and trace >= r11 and trace >= r22:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        i = 1.0 / s
+        return 0.25 * s, (r21 - r12) * i, (r02 - r20) * i, (r10 - r01) * i
+    if r00 >= r11 and r00 >= r22:
+        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
+        i = 1.0 / s
+        return (r21 - r12) * i, 0.25 * s, (r01 + r10) * i, (r02 + r20) * i
+    if r11 >= r22:
+        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
+        i = 1.0 / s
+        return (r02 - r20) * i, (r01 + r10) * i, 0.25 * s, (r12 + r21) * i
+    s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
+    i = 1.0 / s
+    return (r10 - r01) * i, (r02 + r20) * i, (r12 + r21) * i, 0.25 * s
 
 
 @jit
@@ -97,13 +126,13 @@ def _ref_vector(ux, uy, uz, mx, my, mz, mag_ok, lw, lx, ly, lz, cdh, sdh):
             ex, ey, ez = ex * s, ey * s, ez * s
             d = ex * ux + ey * uy + ez * uz
             ex, ey, ez = ex - d * ux, ey - d * uy, ez - d * uz
-    en = 1.0 / math.sqrt(ex * ex + ey * ey + ez * ez)
+    en = 1.0 / math.sqrt(ex * ex + ey * ey + ez * ez)  # (the rows are then orthonormal)
     ex, ey, ez = ex * en, ey * en, ez * en
     nx = uy * ez - uz * ey
     ny = uz * ex - ux * ez
     nz = ux * ey - uy * ex
     # rows of mat_wb are the world axes (E, N, U) in body components
-    qw, qx, qy, qz = _q_from_mat(ex, ey, ez, nx, ny, nz, ux, uy, uz)
+    qw, qx, qy, qz = _q_from_rows(ex, ey, ez, nx, ny, nz, ux, uy, uz)
     if mag_ok:
         # magnetic → true: rotate the world by −D about Up
         return _qmul(cdh, 0.0, 0.0, -sdh, qw, qx, qy, qz)
@@ -152,7 +181,7 @@ def _batch_reference(method, accel, mag, decl, out):
         mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
         mag_ok = _vec_norm_ok(mx, my, mz, MIN_MAG, MAX_MAG)[0]
         if mag_ok:
-            mag_ok = _mag_usable(fx / fn, fy / fn, fz / fn, mx, my, mz)
+            mag_ok = _mag_usable(fx, fy, fz, mx, my, mz)
         q = _reference(method, fx, fy, fz, fn, mx, my, mz, mag_ok, lw, lx, ly, lz, decl, cdh, sdh)
         # keep consecutive rows in one hemisphere (continuous sign)
         if q[0] * lw + q[1] * lx + q[2] * ly + q[3] * lz < 0.0:

@@ -10,6 +10,7 @@ import importlib
 from pathlib import Path
 
 PAPERS = {
+    "aleshkin2024": "Aleshkin et al. (2024): BISO, cross-linked positional correction (seed 000)",
     "litmanovich2002": "Litmanovich (2002): coning, sculling and position from multiple integrals (seed 004)",
 }
 """Reproducible papers: name → what it covers."""

@@ -12,7 +12,7 @@ from pathlib import Path as FilePath
 from biso_cosim.routes.route import DrivingLimits, Route, Site, Stop, Waypoint, parse_route, read_route_file
 
 __all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "load_route", "route_names", "parse_route",
-           "read_route_file"]
+           "read_route_file", "library_table"]
 
 _LIBRARY = resources.files("biso_cosim.routes").joinpath("library")
 
@@ -37,3 +37,14 @@ def load_route(name_or_path: str | FilePath | Route) -> Route:
         raise ValueError(f"unknown route {text!r}; known routes: {', '.join(names)} (or give a path to a .toml file)")
     with resources.as_file(_LIBRARY.joinpath(f"{text}.toml")) as path:
         return read_route_file(path)
+
+
+def library_table() -> str:
+    """The route library as a Markdown table (the one in docs/routes.md is this)."""
+    rows = ["| route | what it is | excites | length | duration |", "|---|---|---|---|---|"]
+    for name in route_names():
+        r = load_route(name)
+        s = r.summary()
+        rows.append(f"| `{name}` | {r.description} | {r.excites} | {s['length_m']:.0f} m | "
+                    f"{s['nominal_duration_s']:.0f} s |")
+    return "\n".join(rows)
