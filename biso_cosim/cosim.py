@@ -20,19 +20,30 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from biso_cosim.estimators import Estimate, make_estimator
+from biso_cosim.frames import quat_angle_between
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
 from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.sim import Truth, VehicleSim
 
-__all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE"]
+__all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
+           "NAVIGATOR_PRESETS"]
 
 DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
 """A typical MPU-9250 after the usual start-up calibration (see docs/sensors.md)."""
 
 DEFAULT_ESTIMATORS = ("biso", "poisson")
 """Estimators of a run unless told otherwise: BISO and the uncorrected integration it improves on."""
+
+NAVIGATOR_PRESETS = {
+    "one_sample": {"coning": "one_sample", "sculling": "traditional1", "position": "rectangle"},
+    "two_sample": {"coning": "two_sample", "sculling": "traditional2", "position": "trapezoid"},
+    "smoothing": {"coning": "smoothing", "sculling": "smoothing", "position": "exact"},
+    "invariant": {"coning": "invariant", "sculling": "invariant_rate1", "position": "exact"},
+}
+"""Dead-reckoning navigators by family (Litmanovich 2002): coning, sculling and position
+algorithms; the update interval is the sensor's output interval."""
 
 # Time the car stands still at the end of a completed route before the end window of the
 # start-to-end difference is taken, and the length of both windows.
@@ -130,14 +141,18 @@ class CoSimulation:
         driver does with the gyro offset registers at start-up: use it with the raw
         ``"mpu9250"`` profile, whose ±5 °/s turn-on bias otherwise dominates every gyro-only
         result. 0 (the default) disables it.
+    navigators : dead-reckoning navigators (:class:`biso_cosim.strapdown.StrapdownNavigator`)
+        started from the true state at time zero and fed the sensor's increments: names of
+        ``NAVIGATOR_PRESETS`` or ``(label, {"coning": ..., "sculling": ..., "position": ...})``.
+        They show how fast each algorithm family drifts on the car (no aiding at all).
     physics_rate_hz, control_rate_hz : MuJoCo step rate and driver rate (a whole multiple).
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
                  estimators: Iterable[str | EstimatorSpec | tuple] = DEFAULT_ESTIMATORS,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, registers: Mapping[str, int] | None = None,
-                 mounting: Any = None, gyro_calibration_s: float = 0.0, physics_rate_hz: float = 1000.0,
-                 control_rate_hz: float = 50.0):
+                 mounting: Any = None, gyro_calibration_s: float = 0.0, navigators: Iterable = (),
+                 physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0):
         self.route = load_route(route)
         if duration_s is None:
             duration_s = math.ceil(self.route.nominal_duration_s + 10.0)
@@ -170,7 +185,9 @@ class CoSimulation:
             est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
             self.estimators[spec.key] = est
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
+        self._setup_navigators(navigators)
         self._calibrate_gyro()
+        self._reset_navigators()
         self._reset_logs()
 
     def _speed_geometry(self, name: str, params: Mapping[str, Any]) -> dict[str, Any]:
@@ -193,9 +210,57 @@ class CoSimulation:
         self.vehicle.reset()
         self.imu.reset(seed=self.seed)
         self._calibrate_gyro()
+        self._reset_navigators()
         for est in self.estimators.values():
             est.reset()
         self._reset_logs()
+
+    def _setup_navigators(self, navigators: Iterable) -> None:
+        """Parameters of the navigators and the increments they need from the sensor."""
+        from biso_cosim.strapdown import NavigatorParams
+        from biso_cosim.strapdown.navigator import _setup
+
+        if isinstance(navigators, str):
+            navigators = (navigators,)
+        self.navigator_params: dict[str, NavigatorParams] = {}
+        orders, subs = 0, set()
+        for item in navigators:
+            if isinstance(item, str):
+                if item not in NAVIGATOR_PRESETS:
+                    raise ValueError(f"unknown navigator {item!r}; known: {', '.join(NAVIGATOR_PRESETS)} "
+                                     "(or a (label, {coning, sculling, position}) pair)")
+                label, settings = item, NAVIGATOR_PRESETS[item]
+            elif isinstance(item, tuple) and len(item) == 2 and isinstance(item[1], Mapping):
+                label, settings = str(item[0]), dict(item[1])
+            else:
+                raise ValueError(f"navigators: expected preset names or (label, settings) pairs, got {item!r}")
+            if label in self.navigator_params:
+                raise ValueError(f"navigators: labels must be unique, {label!r} repeats")
+            params = NavigatorParams(interval_s=1.0 / self.imu.output_rate_hz, **settings)
+            setup = _setup(params)
+            if setup.multiple:
+                orders = max(orders, setup.rows_dtheta, setup.rows_dv)
+            elif setup.rows_dtheta is None:
+                orders = max(orders, 1)  # one-sample algorithms take the whole interval's increment
+            else:
+                subs.add(setup.rows_dtheta)
+            self.navigator_params[label] = params
+        if len(subs) > 1:
+            raise ValueError(f"navigators: sub-interval algorithms with different numbers of increments "
+                             f"({sorted(subs)}) cannot share one sensor stream; run them separately")
+        self._increment_orders = orders
+        self._subintervals = subs.pop() if subs else 0
+
+    def _reset_navigators(self) -> None:
+        """Navigators start from the true state at time zero (the car at rest, settled)."""
+        from biso_cosim.strapdown import StrapdownNavigator
+
+        row = self.vehicle.current_truth()
+        interval = 1.0 / self.imu.output_rate_hz
+        # the state is at −T: the first update covers the sensor's first interval, ending at 0
+        self.navigators = {label: StrapdownNavigator(params, q_wb=row.q_wb[0], v_w=row.vel_w[0], p_w=row.pos_w[0],
+                                                     t_s=-interval)
+                           for label, params in self.navigator_params.items()}
 
     def _calibrate_gyro(self) -> None:
         """Start-up gyro offset calibration with the car at rest (see ``gyro_calibration_s``).
@@ -211,13 +276,15 @@ class CoSimulation:
         row = self.vehicle.current_truth()
         parked = Truth(np.repeat(row.packed, n, axis=0))
         mag_b = self.magnetic.field_b(parked.q_wb, parked.pos_w)
-        samples = self.imu.simulate(parked.omega_b, parked.specific_force_b, mag_b)
+        samples = self.imu.simulate(parked.omega_b, parked.specific_force_b, mag_b,
+                                    increments=self._increment_orders, subintervals=self._subintervals)
         self.gyro_offset_b = samples.gyro_b.mean(axis=0)
 
     def _reset_logs(self) -> None:
         self._chunks_done = 0
         self._last_truth_row: Truth | None = None
         self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": []}
+        self._nav_log: dict[str, list] = {k: [] for k in self.navigator_params}
         self._est_log: dict[str, list[Estimate]] = {k: [] for k in self.estimators}
 
     @property
@@ -249,10 +316,13 @@ class CoSimulation:
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
         mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
-        samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b)
+        samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b,
+                                    increments=self._increment_orders, subintervals=self._subintervals)
         samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
-        samples.gyro_b -= self.gyro_offset_b
+        self._remove_gyro_offset(samples)
         at_samples = self._truth_at(samples.t_s, truth)
+        for label, nav in self.navigators.items():
+            self._nav_log[label].append(self._navigate(nav, samples))
         outputs = {}
         for key, est in self.estimators.items():
             if "speed_mps" in getattr(est, "inputs", ()):
@@ -306,8 +376,10 @@ class CoSimulation:
         imu = ImuSamples.concatenate(self._log["imu"])
         estimates = {k: (np.concatenate([o.q_wb for o in outs]), np.concatenate([o.flags for o in outs]))
                      for k, outs in self._est_log.items()}
+        navigation = {k: {name: np.concatenate([getattr(o, name) for o in outs]) for name in ("q_wb", "v_w", "p_w")}
+                      for k, outs in self._nav_log.items()}
         return RunResult(
-            route=self.route, truth=truth, imu=imu, estimates=estimates,
+            route=self.route, truth=truth, imu=imu, estimates=estimates, navigation=navigation,
             specs={s.key: s for s in self.specs},
             seed=self.seed, duration_s=self._chunks_done / self.vehicle.control_rate_hz,
             wall_time_s=wall_time_s, completed=self.vehicle.driver.finished,
@@ -320,6 +392,27 @@ class CoSimulation:
                   "declination_deg": math.degrees(self.earth.declination_rad),
                   "field_enu_ut": [float(v) for v in self.earth.field_enu_ut]},
         )
+
+    def _remove_gyro_offset(self, samples: ImuSamples) -> None:
+        """Subtract the start-up gyro offset from the readings and from the increments: the
+        r-fold integral of a constant c over T is c·T^r/r!, each of m sub-intervals c·T/m."""
+        if not self.gyro_offset_b.any():
+            return
+        samples.gyro_b -= self.gyro_offset_b
+        T = 1.0 / self.imu.output_rate_hz
+        if samples.dtheta is not None:
+            for r in range(samples.dtheta.shape[1]):
+                samples.dtheta[:, r] -= self.gyro_offset_b * T ** (r + 1) / math.factorial(r + 1)
+        if samples.dtheta_sub is not None:
+            samples.dtheta_sub -= self.gyro_offset_b * T / samples.dtheta_sub.shape[1]
+
+    @staticmethod
+    def _navigate(nav, samples: ImuSamples):
+        if nav.input_form == "multiple":
+            return nav.update(samples.dtheta, samples.dv)
+        if samples.dtheta_sub is not None and nav.params.coning != "one_sample":
+            return nav.update(samples.dtheta_sub, samples.dv_sub)
+        return nav.update(samples.dtheta[:, :1], samples.dv[:, :1])
 
     # ------------------------------------------------------------------ truth at sample times
     def _truth_at(self, t_s: np.ndarray, chunk: Truth) -> Truth:
@@ -338,6 +431,7 @@ class RunResult:
     truth: Truth
     imu: ImuSamples
     estimates: dict[str, tuple[np.ndarray, np.ndarray]]
+    navigation: dict[str, dict[str, np.ndarray]]
     specs: dict[str, EstimatorSpec]
     seed: int
     duration_s: float
@@ -399,7 +493,25 @@ class RunResult:
                 entry["start_end_deg"] = est
                 entry["start_end_error_deg"] = {a: est[a] - out["truth_start_end_deg"][a] for a in ANGLES}
             out["estimators"][key] = entry
+        if self.navigation:
+            out["navigators"] = {key: self.navigation_errors(key) for key in self.navigation}
         return out
+
+    def navigation_errors(self, key: str) -> dict:
+        """Dead-reckoning errors of one navigator against the truth (IMU site)."""
+        nav = self.navigation[key]
+        truth = self.truth
+        att = np.degrees(quat_angle_between(nav["q_wb"], truth.q_wb))
+        horizontal = np.linalg.norm(nav["p_w"][:, :2] - truth.pos_w[:, :2], axis=1)
+        vertical = np.abs(nav["p_w"][:, 2] - truth.pos_w[:, 2])
+        velocity = np.linalg.norm(nav["v_w"] - truth.vel_w, axis=1)
+        return {
+            "attitude_rms_deg": float(np.sqrt(np.mean(att**2))), "attitude_max_deg": float(att.max()),
+            "attitude_end_deg": float(att[-1]),
+            "horizontal_position_end_m": float(horizontal[-1]), "horizontal_position_max_m": float(horizontal.max()),
+            "vertical_position_end_m": float(vertical[-1]),
+            "velocity_rms_mps": float(np.sqrt(np.mean(velocity**2))), "velocity_end_mps": float(velocity[-1]),
+        }
 
 
 def run_route(route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,

@@ -18,7 +18,7 @@ import numpy as np  # noqa: E402
 
 from biso_cosim.metrics import ANGLES, attitude_angles_deg  # noqa: E402
 
-__all__ = ["plot_run"]
+__all__ = ["plot_run", "plot_navigation"]
 
 _LABELS = {"roll": "roll (°)", "pitch": "pitch (°)", "heading": "heading (°, from N)"}
 
@@ -81,6 +81,41 @@ def plot_run(result, path: str | Path) -> Path:
         f"route {result.route.name}, seed {result.seed}, {result.duration_s:.0f} s simulated; "
         f"MPU-9250 '{result.sensor['profile']}' at {result.sensor['output_rate_hz']:g} Hz"
     )
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_navigation(result, path: str | Path) -> Path:
+    """Dead-reckoning navigators of a run: plan view against the truth, horizontal position
+    error and attitude error over time (log scales: the errors grow by decades)."""
+    from biso_cosim.frames import quat_angle_between
+
+    path = Path(path)
+    t = result.t_s
+    truth = result.truth
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, axes = plt.subplots(1, 3, figsize=(16, 5), layout="constrained")
+    axes[0].plot(truth.pos_w[:, 0], truth.pos_w[:, 1], color="k", lw=1.5, label="truth")
+    for i, (key, nav) in enumerate(result.navigation.items()):
+        c = colors[i % len(colors)]
+        axes[0].plot(nav["p_w"][:, 0], nav["p_w"][:, 1], color=c, lw=0.8, label=key)
+        horizontal = np.linalg.norm(nav["p_w"][:, :2] - truth.pos_w[:, :2], axis=1)
+        axes[1].plot(t, np.maximum(horizontal, 1e-6), color=c, lw=0.8, label=key)
+        axes[2].plot(t, np.maximum(np.degrees(quat_angle_between(nav["q_wb"], truth.q_wb)), 1e-6), color=c,
+                     lw=0.8, label=key)
+    axes[0].set_aspect("equal", adjustable="datalim")
+    axes[0].set_xlabel("East (m)")
+    axes[0].set_ylabel("North (m)")
+    axes[0].legend(fontsize=8)
+    for ax, label in ((axes[1], "horizontal position error (m)"), (axes[2], "attitude error (°)")):
+        ax.set_yscale("log")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.suptitle(f"dead reckoning from the true initial state: route {result.route.name}, seed {result.seed}, "
+                 f"MPU-9250 '{result.sensor['profile']}'")
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

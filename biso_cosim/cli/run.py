@@ -39,6 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gyro-calibration", type=float, default=0.0, metavar="S",
                    help="average the gyro at rest for S seconds before the start and subtract it, as a "
                         "driver does at start-up (for the raw mpu9250 profile); default 0")
+    p.add_argument("--navigator", action="append", default=[], metavar="NAME",
+                   help="also run a dead-reckoning navigator from the true initial state (repeatable): "
+                        "one_sample, two_sample, smoothing, invariant (Litmanovich 2002 families); writes "
+                        "OUT/navigation.png")
     p.add_argument("--out", default=None, metavar="DIR", help="output directory (default out/<route>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-log", action="store_true", help="skip log.csv (large for long routes)")
@@ -82,6 +86,13 @@ def print_summary(summary: dict) -> None:
     print(f"wall time {summary['wall_time_s']:.1f} s: {speed:.1f} simulated seconds per wall second; "
           f"driver cross-track RMS {summary['cross_track_rms_m']:.3f} m")
     print(_format_table(summary))
+    if summary.get("navigators"):
+        print(f"{'navigator':<14}{'attitude RMS °':>16}{'end °':>8}{'horizontal end m':>18}{'vertical end m':>16}"
+              f"{'velocity RMS m/s':>18}")
+        for key, e in summary["navigators"].items():
+            print(f"{key:<14}{e['attitude_rms_deg']:>16.4f}{e['attitude_end_deg']:>8.4f}"
+                  f"{e['horizontal_position_end_m']:>18.3f}{e['vertical_position_end_m']:>16.3f}"
+                  f"{e['velocity_rms_mps']:>18.4f}")
     if summary["truth_start_end_deg"] is None:
         print("(no start-to-end differences: the route is open or was not driven to its end)")
     else:
@@ -92,7 +103,7 @@ def print_summary(summary: dict) -> None:
 def main(args: argparse.Namespace) -> int:
     from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, CoSimulation
     from biso_cosim.logs import write_run_log
-    from biso_cosim.plotting import plot_run
+    from biso_cosim.plotting import plot_navigation, plot_run
     from biso_cosim.routes import load_route
 
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
@@ -106,7 +117,7 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.out or Path("out") / route.name)
     sim = CoSimulation(route, duration_s=args.duration, seed=args.seed, estimators=names,
                        sensor_profile=args.sensor_profile or DEFAULT_SENSOR_PROFILE,
-                       gyro_calibration_s=args.gyro_calibration)
+                       gyro_calibration_s=args.gyro_calibration, navigators=args.navigator)
     out.mkdir(parents=True, exist_ok=True)
     result = sim.run(progress=not args.no_progress)
     summary = result.summary()
@@ -116,5 +127,7 @@ def main(args: argparse.Namespace) -> int:
     if not args.no_log:
         written.append(write_run_log(result, out / "log.csv"))
     written.append(plot_run(result, out / "attitude.png"))
+    if result.navigation:
+        written.append(plot_navigation(result, out / "navigation.png"))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
