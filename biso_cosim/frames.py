@@ -198,22 +198,19 @@ def _q_from_euler(roll, pitch, yaw):
 
 @jit
 def _wrap(angle):
-    """Angle wrapped into (−π, π]."""
-    a = math.fmod(angle + math.pi, 2.0 * math.pi)
-    if a <= 0.0:
-        a += 2.0 * math.pi
-    return a - math.pi
+    """Angle wrapped into (−π, π] (floor-based: numba has no math.fmod)."""
+    two_pi = 2.0 * math.pi
+    a = math.pi - (math.pi - angle - two_pi * math.floor((math.pi - angle) / two_pi))
+    return math.pi if a <= -math.pi else a
 
 
 @jit
 def _heading_from_yaw(yaw):
     """Compass heading (clockwise from North, [0, 2π)) of an ENU yaw."""
-    h = math.fmod(0.5 * math.pi - yaw, 2.0 * math.pi)
-    if h < 0.0:
-        h += 2.0 * math.pi
-    if h >= 2.0 * math.pi:  # fmod rounding can land exactly on 2π
-        h -= 2.0 * math.pi
-    return h
+    two_pi = 2.0 * math.pi
+    h = 0.5 * math.pi - yaw
+    h -= two_pi * math.floor(h / two_pi)
+    return 0.0 if h >= two_pi else h  # rounding can land exactly on 2π
 
 
 @jit

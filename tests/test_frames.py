@@ -162,3 +162,20 @@ def test_bad_shapes_name_the_argument():
         fr.quat_from_matrix(np.eye(4))
     with pytest.raises(ValueError, match="non-zero"):
         fr.quat_normalize(np.zeros(4))
+
+
+def test_scalar_kernels_compile_and_agree_with_the_array_functions():
+    """Every scalar kernel is usable inside other numba kernels (nopython)."""
+    angles = np.array([-7.0, -math.pi, -1e-17, 0.0, 1e-17, 1.0, math.pi, 3 * math.pi, 12.5])
+    for a in angles:
+        assert fr._wrap(a) == pytest.approx(float(fr.wrap_angle(a)), abs=1e-12)
+        assert fr._heading_from_yaw(a) == pytest.approx(float(fr.heading_from_yaw(a)), abs=1e-12)
+        assert -math.pi < fr._wrap(a) <= math.pi and 0.0 <= fr._heading_from_yaw(a) < 2 * math.pi
+    q = fr.quat_from_euler(0.1, -0.2, 0.3)
+    assert fr._euler_from_q(*q) == pytest.approx(tuple(fr.euler_from_quat(q)))
+    assert fr._q_from_euler(0.1, -0.2, 0.3) == pytest.approx(tuple(q))
+    assert fr._qrot_inv(*q, 1.0, 2.0, 3.0) == pytest.approx(tuple(fr.quat_rotate(fr.quat_conjugate(q), [1.0, 2, 3])))
+    lam = fr._gost_lambda_from_angles(0.3, 0.2, 0.1)
+    assert fr._gost_angles_from_lambda(*lam) == pytest.approx((0.3, 0.2, 0.1))
+    assert fr._q_from_mat(*fr._mat_from_q(*q)) == pytest.approx(tuple(q))
+    assert fr._qlog_rotvec(*fr._qexp_rotvec(0.1, 0.2, -0.3)) == pytest.approx((0.1, 0.2, -0.3))

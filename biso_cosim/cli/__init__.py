@@ -15,7 +15,7 @@ import sys
 from biso_cosim import __version__
 
 # Sub-command modules, in the order they appear in --help.
-COMMANDS = ("run", "estimate", "compare", "routes", "reproduce", "sensor")
+COMMANDS = ("run", "estimate", "compare", "routes", "reproduce", "sensor", "fmu")
 
 
 class UserError(Exception):

@@ -1,0 +1,83 @@
+"""``BisoVehicle.fmu``: the whole co-simulation (``biso_cosim.cosim.CoSimulation``) as a slave.
+
+The MuJoCo car drives a route (the scripted driver, or the inputs ``steer``, ``drive``,
+``brake`` with ``external_driver``); the virtual MPU-9250 and one estimator run in the loop,
+exactly as ``biso-cosim run`` runs them: each communication step is a whole number of
+control periods (20 ms by default), each period is one ``CoSimulation.step``. The outputs
+are the latest sensor sample of the step, the truth interpolated to its time stamp (what
+the run's log holds), the estimate after it and its error.
+
+FMU state: not supported yet (``canGetAndSetFMUstate=false``): ``CoSimulation`` has no whole
+get/set state (MuJoCo, driver, sensor, estimators, its own counters) to build it on.
+"""
+
+from __future__ import annotations
+
+from biso_cosim.fmu._slave import BisoSlave, FmuConfigError
+
+__all__ = ["VehicleSlave"]
+
+# output key head → columns of biso_cosim.vehicle.sim.Truth.packed
+_TRUTH_COLUMNS = (("truth_omega", 1, 4), ("truth_force", 4, 7), ("truth_q", 7, 11), ("truth_pos", 11, 14),
+                  ("truth_vel", 14, 17), ("truth_speed", 17, 18))
+
+
+class VehicleSlave(BisoSlave):
+    """MuJoCo car on a route with the virtual MPU-9250 and an estimator in the loop."""
+
+    fmu = "BisoVehicle"
+    summary = ("The biso_cosim co-simulation: MuJoCo car on a scripted route (or driven by the inputs), "
+               "virtual MPU-9250 and attitude estimator in the loop; truth, readings and estimate out")
+    default_step_s = 0.02  # one control period
+    default_stop_s = 580.0  # loop600 (the default route) and 10 s at rest, as biso-cosim run
+    fmi_options = {**BisoSlave.fmi_options, "canHandleVariableCommunicationStepSize": True,
+                   "canGetAndSetFMUstate": False, "canSerializeFMUstate": False}
+
+    def _configure(self) -> None:
+        from biso_cosim.cosim import CoSimulation, EstimatorSpec
+
+        values = self.values
+        self.name, params = self.estimator_choice()  # an unset declination: the route site's (CoSimulation)
+        # pythonfmu 0.7 passes no stop time, and stepping goes on past CoSimulation's duration
+        # (which only ends run()), so the duration is the route's default
+        registers = {v.key[1]: values[v.name] for v in self.specs
+                     if v.key[0] == "register" and v.name in self.set_by_host} or None
+        self.sim = CoSimulation(
+            values["route"], seed=values["sensor.seed"],
+            estimators=[EstimatorSpec(self.name, params)], sensor_profile=values["sensor.profile"],
+            registers=registers, mounting=self.mounting_quaternion(),
+            gyro_calibration_s=values["sensor.gyro_calibration_s"],
+            physics_rate_hz=values["physics_rate_hz"], control_rate_hz=values["control_rate_hz"])
+        self.est = self.sim.estimators[self.name]
+        self.external = values["external_driver"]
+
+    def _command(self):
+        from biso_cosim.vehicle.driver import DriverCommand
+
+        steer, drive, brake = self.vector("command")
+        if not (-1.0 <= drive <= 1.0 and 0.0 <= brake <= 1.0):
+            raise FmuConfigError(f"drive must be in [-1, 1] and brake in [0, 1], got drive={drive!r}, brake={brake!r}")
+        return DriverCommand(steer, drive, brake)
+
+    def _advance(self, step_size: float) -> None:
+        n = self.samples_in(step_size, self.sim.vehicle.control_rate_hz, "control (control_rate_hz)")
+        command = self._command() if self.external else None
+        latest, count = None, 0
+        for _ in range(n):
+            samples, truth, outputs = self.sim.step(command)
+            if len(samples.t_s):
+                latest, count = (samples, truth, outputs[self.name]), count + len(samples.t_s)
+        self.put("cross_track", self.sim.vehicle.driver.state.cross_track_m)
+        self.put("finished", self.sim.vehicle.driver.finished)
+        if latest is None:
+            self.put("new_samples", 0)
+            return
+        samples, truth, estimate = latest
+        self.put_readings(samples, self.start_time, count)
+        row = truth.packed[-1].tolist()  # Truth columns: t, ω_b, f_b, q_wb, p_w, v_w, speed, wheels
+        for head, first, last in _TRUTH_COLUMNS:
+            self.put(head, row[first:last])
+        self.put_estimate(estimate.q_wb[-1], estimate.flags[-1],
+                          None if estimate.gyro_bias_b is None else estimate.gyro_bias_b[-1])
+        self.put_errors(estimate.q_wb[-1], truth.packed[-1, 7:11])
+
