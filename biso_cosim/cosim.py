@@ -12,11 +12,13 @@ time stamps, so every estimate is compared with the attitude at the instant it r
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
+import mujoco
 import numpy as np
 
 from biso_cosim.estimators import Estimate, make_estimator
@@ -27,7 +29,7 @@ from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironm
 from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.sim import Truth, VehicleSim
 
-__all__ = ["EstimatorSpec", "CoSimulation", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
+__all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
            "NAVIGATOR_PRESETS"]
 
 DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
@@ -280,7 +282,77 @@ class CoSimulation:
                                     increments=self._increment_orders, subintervals=self._subintervals)
         self.gyro_offset_b = samples.gyro_b.mean(axis=0)
 
+    # ------------------------------------------------------------------ whole state
+    def get_state(self) -> "CoSimState":
+        """Everything that determines what happens next (MuJoCo, driver, sensor, estimators,
+        navigators, counters), and how long the logs were; picklable. Restore it with
+        :meth:`set_state` to go back in time (FMU get/set state, environment checkpoints)."""
+        if any(isinstance(e, _UserEstimator) for e in self.estimators.values()):
+            raise ValueError("get_state: a user's estimator is in the loop, and its state is unknown to the "
+                             "co-simulation")
+        v = self.vehicle
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        physics = np.empty(mujoco.mj_stateSize(v.model, spec))
+        mujoco.mj_getState(v.model, v.data, physics, spec)
+        return CoSimState(
+            physics=physics, sensordata=v.data.sensordata.copy(), steps_done=v.steps_done,
+            driver=copy.deepcopy(v.driver.state),
+            imu=copy.deepcopy(self.imu.get_state()),
+            estimators={k: copy.deepcopy(e.get_state()) for k, e in self.estimators.items()},
+            navigators={k: copy.deepcopy(n.get_state()) for k, n in self.navigators.items()},
+            chunks_done=self._chunks_done,
+            last_truth_row=None if self._last_truth_row is None else self._last_truth_row.packed.copy(),
+            log_lengths=self._log_lengths())
+
+    def set_state(self, state: "CoSimState") -> None:
+        """Restore a state from :meth:`get_state` of this co-simulation's set-up.
+
+        The logs are cut back to the state's time. A state later than the logs (from another
+        instance, or after a reset) is restored too, but the log then starts afresh at the
+        state's time, and the run's summary has no start-to-end figures.
+        """
+        if not isinstance(state, CoSimState):
+            raise TypeError(f"set_state expects a CoSimState from get_state(), got {type(state).__name__}")
+        if set(state.estimators) != set(self.estimators) or set(state.navigators) != set(self.navigators):
+            raise ValueError("set_state: the state is from a co-simulation with other estimators or navigators")
+        v = self.vehicle
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        if state.physics.shape != (mujoco.mj_stateSize(v.model, spec),):
+            raise ValueError("set_state: the physics state does not fit this model (another route?)")
+        mujoco.mj_setState(v.model, v.data, state.physics, spec)
+        # the driver reads the sensor data of the last step, which belongs to that step's start
+        # (DESIGN.md §3): restore it as it was rather than recompute it for the current state
+        v.data.sensordata[:] = state.sensordata
+        v.steps_done = state.steps_done
+        v.driver.state = copy.deepcopy(state.driver)
+        self.imu.set_state(copy.deepcopy(state.imu))
+        for key, est in self.estimators.items():
+            est.set_state(copy.deepcopy(state.estimators[key]))
+        for key, nav in self.navigators.items():
+            nav.set_state(copy.deepcopy(state.navigators[key]))
+        self._chunks_done = state.chunks_done
+        self._last_truth_row = None if state.last_truth_row is None else Truth(state.last_truth_row.copy())
+        lengths = self._log_lengths()
+        if all(lengths[k] >= n for k, n in state.log_lengths.items()):
+            self._trim_logs(state.log_lengths)
+        else:
+            self._trim_logs({k: 0 for k in lengths})
+            self._log_origin_chunk = state.chunks_done
+
+    def _log_lengths(self) -> dict[str, int]:
+        out = {f"log.{k}": len(v) for k, v in self._log.items()}
+        out.update({f"est.{k}": len(v) for k, v in self._est_log.items()})
+        out.update({f"nav.{k}": len(v) for k, v in self._nav_log.items()})
+        return out
+
+    def _trim_logs(self, lengths: Mapping[str, int]) -> None:
+        for name, n in lengths.items():
+            group, key = name.split(".", 1)
+            table = {"log": self._log, "est": self._est_log, "nav": self._nav_log}[group]
+            del table[key][n:]
+
     def _reset_logs(self) -> None:
+        self._log_origin_chunk = 0
         self._chunks_done = 0
         self._last_truth_row: Truth | None = None
         self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": []}
@@ -379,6 +451,7 @@ class CoSimulation:
         navigation = {k: {name: np.concatenate([getattr(o, name) for o in outs]) for name in ("q_wb", "v_w", "p_w")}
                       for k, outs in self._nav_log.items()}
         return RunResult(
+            log_start_s=self._log_origin_chunk / self.vehicle.control_rate_hz,
             route=self.route, truth=truth, imu=imu, estimates=estimates, navigation=navigation,
             specs={s.key: s for s in self.specs},
             seed=self.seed, duration_s=self._chunks_done / self.vehicle.control_rate_hz,
@@ -424,6 +497,22 @@ class CoSimulation:
 
 
 @dataclass
+class CoSimState:
+    """The whole state of a :class:`CoSimulation` (see ``get_state``); picklable."""
+
+    physics: np.ndarray  # mj_getState(mjSTATE_INTEGRATION)
+    sensordata: np.ndarray
+    steps_done: int
+    driver: Any
+    imu: dict
+    estimators: dict
+    navigators: dict
+    chunks_done: int
+    last_truth_row: np.ndarray | None
+    log_lengths: dict
+
+
+@dataclass
 class RunResult:
     """Everything a run produced, at the sensor's output rate, with its metrics."""
 
@@ -440,6 +529,7 @@ class RunResult:
     cross_track_m: np.ndarray
     sensor: dict
     site: dict
+    log_start_s: float = 0.0
 
     @property
     def t_s(self) -> np.ndarray:
@@ -454,7 +544,7 @@ class RunResult:
     def start_end_windows(self) -> tuple[tuple[float, float], tuple[float, float]] | None:
         """Time windows where the car stands still at the start and at the end of a closed
         route, or None when the route was not driven to its end."""
-        if not (self.route.closed and self.completed):
+        if not (self.route.closed and self.completed) or self.log_start_s > 0.0:
             return None
         wait = self.route.driving.start_wait_s
         start = (max(wait - _WINDOW_S, 0.0), wait)

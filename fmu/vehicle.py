@@ -7,8 +7,9 @@ control periods (20 ms by default), each period is one ``CoSimulation.step``. Th
 are the latest sensor sample of the step, the truth interpolated to its time stamp (what
 the run's log holds), the estimate after it and its error.
 
-FMU state: not supported yet (``canGetAndSetFMUstate=false``): ``CoSimulation`` has no whole
-get/set state (MuJoCo, driver, sensor, estimators, its own counters) to build it on.
+FMU state: ``fmi2GetFMUstate``/``fmi2SetFMUstate`` and serialisation take the whole
+co-simulation (``CoSimulation.get_state``: MuJoCo, driver, sensor, estimator, counters), so
+a master can go back in time and repeat a step with other inputs bit for bit.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class VehicleSlave(BisoSlave):
     default_step_s = 0.02  # one control period
     default_stop_s = 580.0  # loop600 (the default route) and 10 s at rest, as biso-cosim run
     fmi_options = {**BisoSlave.fmi_options, "canHandleVariableCommunicationStepSize": True,
-                   "canGetAndSetFMUstate": False, "canSerializeFMUstate": False}
+                   "canGetAndSetFMUstate": True, "canSerializeFMUstate": True}
 
     def _configure(self) -> None:
         from biso_cosim.cosim import CoSimulation, EstimatorSpec
@@ -81,3 +82,9 @@ class VehicleSlave(BisoSlave):
                           None if estimate.gyro_bias_b is None else estimate.gyro_bias_b[-1])
         self.put_errors(estimate.q_wb[-1], truth.packed[-1, 7:11])
 
+
+    def model_state(self):
+        return self.sim.get_state()
+
+    def restore_model_state(self, state) -> None:
+        self.sim.set_state(state)
