@@ -54,3 +54,8 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(__all__)
+
+# Gymnasium ids biso_cosim/<Name>-v0, so that gym.make("biso_cosim:biso_cosim/<Name>-v0") works
+# without a prior import. This imports Gymnasium (a dependency), never MuJoCo: the environment
+# modules load when an environment is made.
+import biso_cosim.envs  # noqa: E402,F401  (registers on import)

@@ -202,9 +202,12 @@ class CoSimulation:
         return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b)}
 
     def _odometry_mps(self, truth: Truth) -> np.ndarray:
-        """Wheel odometry: the mean spin rate of the rear wheels times the wheel radius (the
-        speed of the rear axle's centre, negative in reverse)."""
-        return 0.5 * (truth.wheel_rates[:, 2] + truth.wheel_rates[:, 3]) * self.vehicle.index.wheel_radius_m
+        """Wheel odometry as an ABS controller forms it, from the wheels that are not driven
+        (driven wheels spin under throttle): the mean spin rate of the front wheels times the
+        wheel radius, times the cosine of the steering angle, is the speed of the rear axle's
+        centre in the bicycle model (negative in reverse)."""
+        front = 0.5 * (truth.wheel_rates[:, 0] + truth.wheel_rates[:, 1])
+        return front * self.vehicle.index.wheel_radius_m * np.cos(truth.steer_rad)
 
     # ------------------------------------------------------------------ running
     def reset(self) -> None:

@@ -24,6 +24,7 @@ __all__ = ["Truth", "VehicleSim"]
 # Before time zero the car settles on its suspension with the brakes on for this long, so
 # that the first samples show a car at rest rather than contacts finding their depth.
 _SETTLE_S = 3.0
+_SETTLED_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def _columns(index: int | slice, doc: str) -> property:
@@ -36,11 +37,12 @@ class Truth:
     Columns: ``t_s``; ``omega_b`` (rad/s, body axes); ``specific_force_b`` (m/s², +g up at
     rest); ``q_wb`` (attitude of the body, i.e. of the IMU site, in ENU); ``pos_w`` (m);
     ``vel_w`` (m/s); ``speed_mps`` (forward speed of the rear axle); ``wheel_rates`` (rad/s,
-    wheels fl, fr, rl, rr). The attributes are views of ``packed``.
+    wheels fl, fr, rl, rr); ``steer_rad`` (bicycle steering angle). The attributes are views
+    of ``packed``.
     """
 
     __slots__ = ("packed",)
-    WIDTH = 22
+    WIDTH = 23
     QUAT_COLUMN = 7
 
     t_s = _columns(0, "time, s")
@@ -51,6 +53,7 @@ class Truth:
     vel_w = _columns(slice(14, 17), "IMU site velocity, ENU, m/s")
     speed_mps = _columns(17, "forward speed of the rear axle, m/s")
     wheel_rates = _columns(slice(18, 22), "wheel spin rates fl, fr, rl, rr, rad/s")
+    steer_rad = _columns(22, "bicycle steering angle (the steering column), rad, left positive")
 
     def __init__(self, packed: np.ndarray):
         if packed.ndim != 2 or packed.shape[1] != self.WIDTH:
@@ -111,10 +114,11 @@ class VehicleSim:
         self._step_offsets = np.arange(max(self.steps_per_control, 1), dtype=np.float64)
         ix = self.index
         # sensordata columns of Truth's columns 1..21, in order
+        self._settled: tuple[np.ndarray, np.ndarray] | None = None
         self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
                              np.arange(ix.quat.start, ix.quat.stop), np.arange(ix.pos.start, ix.pos.stop),
                              np.arange(ix.vel_w.start, ix.vel_w.stop), [ix.rear_axle_vel_b.start],
-                             np.arange(ix.wheel_rates.start, ix.wheel_rates.stop)]
+                             np.arange(ix.wheel_rates.start, ix.wheel_rates.stop), [ix.steering_angle.start]]
         self.reset()
 
     # ------------------------------------------------------------------ placement
@@ -132,10 +136,16 @@ class VehicleSim:
         d.qpos[3:7] = _q_from_euler(0.0, 0.0, yaw)
         d.ctrl[:] = 0.0
         d.ctrl[ix.brakes] = 1.0
-        mujoco.mj_forward(m, d)
-        for _ in range(int(round(_SETTLE_S * self.physics_rate_hz))):
-            mujoco.mj_step(m, d)
-        d.time = 0.0
+        if self._settled is None:
+            mujoco.mj_forward(m, d)
+            for _ in range(int(round(_SETTLE_S * self.physics_rate_hz))):
+                mujoco.mj_step(m, d)
+            d.time = 0.0
+            self._settled = (np.empty(mujoco.mj_stateSize(m, _SETTLED_STATE)), d.sensordata.copy())
+            mujoco.mj_getState(m, d, self._settled[0], _SETTLED_STATE)
+        else:  # the same settled start as the first time, without settling again
+            mujoco.mj_setState(m, d, self._settled[0], _SETTLED_STATE)
+            d.sensordata[:] = self._settled[1]
         self.steps_done = 0
         self.driver.reset()
 

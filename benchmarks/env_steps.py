@@ -1,0 +1,185 @@
+"""Environment steps per second, single and vectorised, against bare MuJoCo stepping.
+
+For each environment: the time (process CPU time by default, steadier than wall time on a
+machine shared with other jobs) of ``env.step`` over an episode (the unwrapped
+environment, and as ``gym.make`` returns it with Gymnasium's checking wrappers), of the
+co-simulation step alone (physics, sensor, estimators: the environment minus its own work),
+and of bare ``mj_step`` calls of the same model over the same simulated time from the same
+settled start, replaying the same actuator commands, all in the same process. Then steps/s
+of ``gym.make_vec`` with 2 environments, synchronous and asynchronous (one process each),
+by wall time (the asynchronous figure needs two free cores to show its gain).
+
+    python benchmarks/env_steps.py                       # 40 s episodes, every environment
+    python benchmarks/env_steps.py --envs Driving --duration 60 --repeat 5
+
+Columns: µs per step of the unwrapped environment (``env``), the part of it outside the
+co-simulation's step measured in the same calls (``own``: the environment's own work), the
+environment through ``gym.make``, the co-simulation step alone and bare physics; the ratios
+env/bare (the issue's budget: overhead over physics < 30 %) and env/cosim; steps/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import biso_cosim.envs  # noqa: F401  (registers the ids)
+from biso_cosim.envs import ENV_IDS
+
+CLOCKS = {"cpu": time.process_time, "wall": time.perf_counter}
+
+# Driving follows the route from the true pose here, so that an episode lasts (the dead-
+# reckoned pose drifts off the road within tens of metres); the work per step is the same.
+KWARGS = {"biso_cosim/Driving-v0": {"pose_source": "truth"}}
+
+
+def random_walk(env, seed: int):
+    """A policy: a smooth random walk inside the action space (AttitudeEstimation, GainTuning)."""
+    rng = np.random.default_rng(seed)
+    space = env.action_space
+    state = {"a": (space.low + space.high) / 2.0}
+
+    def policy(obs):
+        state["a"] = np.clip(state["a"] + rng.normal(0.0, 0.05, space.shape), space.low, space.high)
+        return state["a"]
+
+    return policy
+
+
+def pursuit(env, seed: int):
+    """A policy for Driving: pure pursuit on the observed route ahead at 6 m/s."""
+    core = env.unwrapped
+
+    def policy(obs):
+        p = core.split_observation(obs)
+        x, y = p["route_ahead"][3]
+        steer = np.arctan(2.0 * 2.7 * np.sin(np.arctan2(y, x)) / max(np.hypot(x, y), 1e-3)) / 0.6
+        return np.clip([0.5 * (6.0 - p["wheel_speed_mps"][:2].mean()), steer], -1.0, 1.0)
+
+    return policy
+
+
+def time_env(env, make_policy, steps: int, seed: int, clock=time.process_time):
+    """Time of ``env.step`` over up to ``steps`` steps of a policy (reset and policy excluded),
+    the part of it spent inside the co-simulation's step, the actions and the controls."""
+    obs, _ = env.reset(seed=seed)
+    core = env.unwrapped
+    policy = make_policy(env, seed)
+    sim = core.sim
+    inner = {"s": 0.0}
+    sim_step = sim.step
+
+    def timed_step(command=None):  # shadows the method on this instance while timing
+        start = clock()
+        out = sim_step(command)
+        inner["s"] += clock() - start
+        return out
+
+    sim.step = timed_step
+    actions, controls = [], []
+    elapsed = 0.0
+    try:
+        for _ in range(steps):
+            a = policy(obs)
+            start = clock()
+            obs, _, terminated, truncated, _ = env.step(a)
+            elapsed += clock() - start
+            actions.append(a)
+            controls.append(sim.vehicle.data.ctrl.copy())
+            if terminated or truncated:
+                break
+    finally:
+        del sim.step
+    return elapsed, inner["s"], np.array(actions), np.array(controls)
+
+
+def time_cosim(core, actions: np.ndarray, seed: int, clock=time.process_time) -> float:
+    """The co-simulation steps of the same episode, without the environment around them."""
+    core.reset(seed=seed)
+    sim = core.sim
+    commands = None
+    if hasattr(core, "weights"):  # Driving: the same commands the environment turned the actions into
+        from biso_cosim.vehicle.driver import DriverCommand
+
+        steer = sim.vehicle.parameters["max_steer_rad"]
+        commands = [DriverCommand(float(a[1]) * steer, max(float(a[0]), 0.0), max(-float(a[0]), 0.0)) for a in actions]
+    start = clock()
+    for i in range(len(actions)):
+        sim.step(None if commands is None else commands[i])
+    return clock() - start
+
+
+def time_bare(core, controls: np.ndarray, clock=time.process_time) -> float:
+    """Bare mj_step of the same model from the same settled start with the same controls
+    (``benchmarks/cosim_overhead.py``'s replay, on this script's clock)."""
+    vehicle = core.sim.vehicle
+    vehicle.reset()
+    model, data, per, step = vehicle.model, vehicle.data, vehicle.steps_per_control, mujoco.mj_step
+    start = clock()
+    for ctrl in controls:
+        data.ctrl[:] = ctrl
+        for _ in range(per):
+            step(model, data)
+    return clock() - start
+
+
+def time_vector(env_id: str, mode: str, duration: float, actions: np.ndarray, seed: int) -> float:
+    """Environment steps per second of 2 environments in a vector environment (replaying
+    ``actions`` in both; for Driving the copies follow the same commands from the same start)."""
+    vec = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, episode_duration_s=duration,
+                       **KWARGS.get(env_id, {}))
+    vec.reset(seed=[seed, seed])
+    batch = np.repeat(actions[:, None, :], 2, axis=1)
+    start = time.perf_counter()
+    for a in batch:
+        vec.step(a)
+    elapsed = time.perf_counter() - start
+    vec.close()
+    return 2 * len(actions) / elapsed
+
+
+def main() -> None:
+    names = [env_id.split("/")[1].split("-")[0] for env_id in ENV_IDS]
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", nargs="+", default=names, choices=names)
+    parser.add_argument("--duration", type=float, default=40.0, help="simulated seconds per episode")
+    parser.add_argument("--repeat", type=int, default=3, help="repetitions; the best of each is kept")
+    parser.add_argument("--clock", default="cpu", choices=sorted(CLOCKS),
+                        help="process CPU time (steady on a shared machine) or wall time")
+    args = parser.parse_args()
+    clock = CLOCKS[args.clock]
+    print(f"single-process figures: {args.clock} time; vector environments: wall time")
+    print(f"{'environment':<19} {'steps':>6} {'env µs':>7} {'own µs':>7} {'make µs':>8} {'cosim µs':>9} "
+          f"{'bare µs':>8} {'env/bare':>9} {'env/cosim':>10} {'steps/s':>8} {'sync/s':>7} {'async/s':>8}")
+    for env_id in ENV_IDS:
+        name = env_id.split("/")[1].split("-")[0]
+        if name not in args.envs:
+            continue
+        wrapped = gym.make(env_id, episode_duration_s=args.duration, **KWARGS.get(env_id, {}))
+        core = wrapped.unwrapped
+        steps = int(round(args.duration * core.metadata["render_fps"])) - 1
+        make_policy = pursuit if name == "Driving" else random_walk
+        time_env(core, make_policy, 50, seed=1)  # warm-up: numba caches, first allocations
+        best = {"env": np.inf, "own": np.inf, "make": np.inf, "cosim": np.inf, "bare": np.inf}
+        for _ in range(args.repeat):
+            t_env, t_inner, actions, controls = time_env(core, make_policy, steps, 1, clock)
+            best["env"] = min(best["env"], t_env)
+            best["own"] = min(best["own"], t_env - t_inner)
+            best["make"] = min(best["make"], time_env(wrapped, make_policy, steps, 1, clock)[0])
+            best["cosim"] = min(best["cosim"], time_cosim(core, actions, 1, clock))
+            best["bare"] = min(best["bare"], time_bare(core, controls, clock))
+        done = len(actions)
+        sync = time_vector(env_id, "sync", args.duration, actions, seed=1)
+        asynchronous = time_vector(env_id, "async", args.duration, actions, seed=1)
+        us = {k: 1e6 * v / done for k, v in best.items()}
+        print(f"{name:<19} {done:>6} {us['env']:>7.1f} {us['own']:>7.1f} {us['make']:>8.1f} {us['cosim']:>9.1f} "
+              f"{us['bare']:>8.1f} {best['env'] / best['bare']:>9.3f} {best['env'] / best['cosim']:>10.3f} "
+              f"{done / best['env']:>8.0f} {sync:>7.0f} {asynchronous:>8.0f}")
+
+
+if __name__ == "__main__":
+    main()

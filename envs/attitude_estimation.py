@@ -1,0 +1,203 @@
+"""``biso_cosim/AttitudeEstimation-v0``: the agent is the attitude estimator."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
+from biso_cosim.envs._docs import finish_docstring
+from biso_cosim.envs._kernels import _angle
+from biso_cosim.frames import quat_from_euler
+from biso_cosim.routes import Route
+
+__all__ = ["AttitudeEstimationEnv"]
+
+_ACTION_TYPES = ("quaternion", "euler")
+
+
+class AttitudeEstimationEnv(CosimEnv, EzPickle):
+    r"""
+    ## Description
+    A car drives a route with the scripted driver (pure pursuit and a speed profile); a
+    virtual MPU-9250 on it delivers gyro, accelerometer and AK8963 magnetometer samples.
+    Each step the agent receives the IMU samples of the last control period and answers
+    with its estimate of the car's attitude at the newest of them. The reward is minus the
+    angle between its estimate and the true attitude. A reference estimator (the faithful
+    BISO of Aleshkin et al. 2024 by default) runs on the same samples, and `info` carries
+    its estimate and error every step, so any agent is compared with it all the way.
+
+    Frames (the package's): world ENU; body x forward, y left, z up; quaternions
+    `(w, x, y, z)`, Hamilton, `q_wb` maps body vectors to world vectors.
+
+    ## Action Space
+    With `action_type="quaternion"` (default) a `Box(-1, 1, (4,), float64)`: the estimate
+    `q_wb = (w, x, y, z)`, normalised by the environment (any non-zero length; `q` and `-q`
+    are the same attitude). With `action_type="euler"` a `Box([-π, -π/2, -π], [π, π/2, π],
+    (3,), float64)`: roll, pitch, yaw in rad (intrinsic z-y-x, yaw counter-clockwise from
+    East). NaN/inf or a wrong shape raise `ValueError`, and so does an all-zero quaternion;
+    out-of-bounds values are clipped to the box (or refused with `action_bounds="raise"`).
+
+    | Num | Action (quaternion) | Min | Max | Unit |
+    |---|---|---|---|---|
+    | 0 | w | -1 | 1 | - |
+    | 1 | x | -1 | 1 | - |
+    | 2 | y | -1 | 1 | - |
+    | 3 | z | -1 | 1 | - |
+
+    ## Observation Space
+    A `Box(-inf, inf, (11·n,), float64)` (`+9` with GNSS, `+4` with `observe_baseline=True`),
+    in this order (`env.unwrapped.observation_structure`, `env.unwrapped.split_observation(obs)`):
+
+    - *imu (n × 11):* the newest `n = ceil(ODR / control rate)` IMU samples, oldest first
+      (4 at the default 200 Hz and 50 Hz), each row `gyro_x, gyro_y, gyro_z` (rad/s),
+      `accel_x, accel_y, accel_z` (specific force, m/s², +g up at rest), `mag_x, mag_y,
+      mag_z` (µT), `mag_fresh` (1: a new AK8963 measurement with this sample; it holds its
+      last one in between), `new` (1: the sample arrived during the last step). When the
+      rates do not divide, rows not renewed this step repeat older samples with `new = 0`.
+    - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix delivered so far: `valid`,
+      `new` (delivered during the last step), `age_s` (from its time of validity to the newest
+      IMU sample, latency included), position `pos_e, pos_n, pos_u` (m, the route's local
+      ENU frame) and velocity `vel_e, vel_n, vel_u` (m/s); zeros with `valid = 0` before the
+      first fix and during outages.
+    - *baseline_q_wb (4), only with `observe_baseline=True`:* the reference estimator's
+      attitude at the newest sample (for residual agents that correct it).
+
+    The readings are what the chip delivers in SI: the part's errors (by default the
+    residuals after the usual start-up calibration), noise, DLPF and quantisation included.
+
+    ## Rewards
+    The total reward is: ***reward*** *=* *reward_attitude* *=* −∠(q_action, q_true) in rad,
+    the rotation angle between the agent's estimate and the true attitude at the newest
+    sample of the observation the agent acted on (in [−π, 0]).
+
+    `info` carries the reward term and, for the same instant: `t_s` (s), `q_wb_true`,
+    `q_wb_baseline`, `error_rad` (= −reward), `baseline_error_rad`, and `distance_m` (the
+    car's progress along the route, m). `info` at reset has the same state keys for the first
+    observation plus `episode_seed`, `sensor_seed`, `route_seed`, `route` (and `gnss_seed`).
+
+    ## Starting State
+    The car stands at the start of the route, settled on its suspension, brakes on; the
+    scripted driver waits for the route's `start_wait_s`, then drives. `reset` advances one
+    control period (or more, until the first IMU sample) so that the first observation
+    holds samples. Every episode draws a new sensor part and noise stream from the episode
+    seed (unless `sensor_seed` fixes them); with `route="random"` a new route as well.
+
+    ## Episode End
+    ### Termination
+    The episode never terminates: estimation has no failure state.
+
+    ### Truncation
+    After `episode_duration_s` simulated seconds (default: the route's nominal duration plus
+    10 s at rest, about 65 s = 3250 steps for `figure8`).
+
+    ## Arguments
+    Pass them to `gymnasium.make`, e.g.
+    `gym.make("biso_cosim:biso_cosim/AttitudeEstimation-v0", route="loop600", action_type="euler")`.
+
+    {arguments}
+
+    ## Version History
+    * v0: Initial version: scripted driver on library or procedural routes, MPU-9250 at its
+      register-defined rate, optional GNSS receiver, BISO reference in `info`.
+    """
+
+    ARGUMENTS = {
+        "action_type": '`"quaternion"` (q_wb, 4 numbers) or `"euler"` (roll, pitch, yaw in rad)',
+        "estimator": "reference estimator whose estimate and error `info` reports "
+                     "(`biso_cosim.estimators.estimator_names()`)",
+        "estimator_params": "its parameters (`describe_estimator(name)`); the declination of the route's site is "
+                            "set unless given",
+        "observe_baseline": "append the reference estimate to the observation",
+    }
+    ACTION_NAMES = ("w", "x", "y", "z")
+
+    def __init__(self, *, route: str | Route = "figure8", action_type: str = "quaternion", estimator: str = "biso",
+                 estimator_params: Mapping[str, Any] | None = None, observe_baseline: bool = False,
+                 random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
+                 sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
+                 sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
+                 gnss_rate_hz: float | None = None,
+                 gnss_profile: str = "consumer", control_rate_hz: float = 50.0,
+                 physics_rate_hz: float = 1000.0, gyro_calibration_s: float = 0.0, action_bounds: str = "clip",
+                 render_mode: str | None = None, render_width: int = 480, render_height: int = 270):
+        arguments = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        EzPickle.__init__(self, **arguments)
+        if action_type not in _ACTION_TYPES:
+            raise ValueError(f"action_type must be one of {_ACTION_TYPES}, got {action_type!r}")
+        if not isinstance(observe_baseline, (bool, np.bool_)):
+            raise TypeError(f"observe_baseline must be True or False, got {observe_baseline!r}")
+        spec = EstimatorSpec(estimator, dict(estimator_params or {}), label="baseline")
+        super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=(spec,))
+        self.action_type = action_type
+        self.observe_baseline = bool(observe_baseline)
+        if action_type == "quaternion":
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float64)
+        else:
+            self.ACTION_NAMES = ("roll", "pitch", "yaw")
+            high = np.array([math.pi, 0.5 * math.pi, math.pi])
+            self.action_space = spaces.Box(-high, high, dtype=np.float64)
+        if self.observe_baseline:
+            self.observation_structure["baseline_q_wb"] = (4,)
+        self.observation_space = self._observation_space()
+        self._baseline_q = np.array([1.0, 0.0, 0.0, 0.0])
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        info = self._begin_episode(seed, options)
+        self._first_period()
+        info.update(self._state_info())
+        info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
+        return self._observation(), info
+
+    def step(self, action: Any):
+        self._require_running()
+        q = self._action_attitude(self._check_action(action))
+        info = self._state_info()
+        error = _angle(q, info["q_wb_true"])
+        info["error_rad"] = error
+        info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
+        reward = -error
+        info["reward_attitude"] = reward
+        self._advance()
+        truncated = self._truncated
+        self._end_if(False, truncated)
+        return self._observation(), reward, False, truncated, info
+
+    def action_quaternion(self, action: Any) -> np.ndarray:
+        """The unit quaternion ``q_wb`` an action stands for (after the bounds policy)."""
+        q = self._action_attitude(self._check_action(action))
+        return q / np.linalg.norm(q)
+
+    def _action_attitude(self, a: np.ndarray) -> np.ndarray:
+        """The attitude of a checked action as a quaternion of any non-zero length (the angle
+        kernel normalises, so an action equal to an estimate scores exactly its error)."""
+        if self.action_type == "euler":
+            return quat_from_euler(a[0], a[1], a[2])
+        if not np.any(a):
+            raise ValueError("action quaternion must not be all zeros")
+        return a
+
+    # ------------------------------------------------------------------ parts
+    def _on_period(self, truth, outputs) -> None:
+        if len(outputs["baseline"].q_wb):
+            self._baseline_q = outputs["baseline"].q_wb[-1].copy()
+
+    def _state_info(self) -> dict[str, Any]:
+        newest = self._newest
+        return {"t_s": float(newest.t_s[0]), "q_wb_true": newest.q_wb[0].copy(),
+                "q_wb_baseline": self._baseline_q.copy(), "distance_m": self._sim.vehicle.driver.state.s_m}
+
+    def _observation(self) -> np.ndarray:
+        parts = self._sensor_parts()
+        if self.observe_baseline:
+            parts.append(self._baseline_q)
+        return np.concatenate(parts)
+
+
+finish_docstring(AttitudeEstimationEnv)

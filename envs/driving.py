@@ -1,0 +1,284 @@
+"""``biso_cosim/Driving-v0``: the agent drives from what the car itself measures."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
+from biso_cosim.envs._docs import finish_docstring
+from biso_cosim.envs._kernels import _angle, _dead_reckon, _route_ahead
+from biso_cosim.routes import Route
+from biso_cosim.vehicle.driver import DriverCommand
+
+__all__ = ["DrivingEnv"]
+
+_POSE_SOURCES = ("estimate", "truth")
+# Within this distance of the end of the route (m) the route counts as driven.
+_END_TOLERANCE_M = 1.0
+# The first control period after reset holds the car (the agent's first action follows it).
+_HOLD = DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)
+
+
+class DrivingEnv(CosimEnv, EzPickle):
+    r"""
+    ## Description
+    The agent drives the car (throttle, brake, steering) along a route, observing only what
+    a car has on board: the virtual MPU-9250's samples, the attitude of the estimator in
+    the loop (`biso_plus` by default, which takes the co-simulation's wheel odometry; the
+    faithful BISO of Aleshkin et al. 2024 with `estimator="biso"`), wheel speeds, the
+    steering angle, and the route ahead as a navigation system would place it from its own
+    pose. That pose is dead-reckoned from the estimator's heading and the front-wheel speed,
+    starting at the known start of the route, so the estimator's errors steer the car: this
+    is estimation in the control loop (with the faithful BISO's errors of tens of degrees the
+    car leaves the road within tens of metres; with `biso_plus` a pure-pursuit policy that
+    keeps the driven wheels from spinning drives `figure8` to its end, 0.6 m off). With `pose_source="truth"` the route ahead is placed
+    from the true pose instead (the same task without the estimation errors). With
+    `gnss_rate_hz` the newest GNSS fix joins the observation: the agent may use it to correct
+    the navigation pose (the environment does not fuse it).
+
+    ## Action Space
+    A `Box(-1, 1, (2,), float64)`:
+
+    | Num | Action | Min | Max | Unit |
+    |---|---|---|---|---|
+    | 0 | throttle: > 0 drive torque at the rear wheels (fraction of 2400 N·m at the axle), < 0 brakes (fraction of full braking on all four wheels) | -1 | 1 | - |
+    | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left | -1 | 1 | - |
+
+    NaN/inf or a wrong shape raise `ValueError`; out-of-bounds values are clipped (or
+    refused with `action_bounds="raise"`), as MuJoCo would clamp the controls.
+
+    ## Observation Space
+    A `Box(-inf, inf, (11·n + 12 + 2·P,), float64)` (`+9` with GNSS), in this order
+    (`env.unwrapped.observation_structure`):
+
+    - *imu (n × 11):* the newest `n = ceil(ODR / control rate)` IMU samples as in
+      `AttitudeEstimation-v0`;
+    - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix as in `AttitudeEstimation-v0`;
+    - *q_wb (4):* the estimator's attitude at the newest sample;
+    - *wheel_speed_mps (4):* wheel spin rate × tyre radius, fl, fr, rl, rr (ideal sensors);
+    - *steering_rad (1):* the measured road-wheel angle;
+    - *pose (3):* the pose the route ahead is placed from: rear-axle x, y (m, local ENU) and
+      yaw (rad), dead-reckoned (or true, with `pose_source="truth"`);
+    - *route_ahead (P × 2):* the route's centre line at `preview_spacing_m`, 2·`preview_spacing_m`,
+      … ahead of the nearest point to the pose, in the pose's frame (x forward, y left, m).
+
+    ## Rewards
+    The total reward is: ***reward*** *=* *reward_progress + reward_cross_track +
+    reward_rollover + reward_off_route*, each from the true state at the end of the step:
+
+    - *reward_progress:* `progress_weight` × the distance gained along the route (m);
+    - *reward_cross_track:* −`cross_track_weight` × |cross-track error| (m) × step time (s);
+    - *reward_rollover:* −`rollover_penalty` when the car tilts past `rollover_tilt_rad`;
+    - *reward_off_route:* −`off_route_penalty` when |cross-track error| exceeds `max_cross_track_m`.
+
+    `info` carries each term (they sum to the reward exactly) and `distance_m`,
+    `cross_track_m`, `speed_mps`, `tilt_rad`, `attitude_error_rad` (estimator vs truth),
+    `nav_pose` and `true_pose` (rear axle x, y in m and yaw in rad, ENU), `pose_error_m` and
+    `heading_error_rad` (navigation pose vs truth), `rolled_over`, `off_route`, `finished`.
+
+    ## Starting State
+    The car stands at the start of the route, settled, brakes on. `reset` holds it there for
+    `alignment_s` (at least one control period): the estimator initialises and aligns at
+    rest, as a car's navigation does before driving off; the first observation follows.
+
+    ## Episode End
+    ### Termination
+    The car rolls over, leaves the route by more than `max_cross_track_m`, or reaches the end
+    of the route (`info["finished"]`).
+
+    ### Truncation
+    After `episode_duration_s` simulated seconds (default: 1.5 times the route's nominal
+    duration plus 10 s).
+
+    ## Arguments
+    {arguments}
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    ARGUMENTS = {
+        "estimator": "estimator in the loop (`biso_cosim.estimators.estimator_names()`)",
+        "estimator_params": "its parameters; the declination of the route's site is set unless given",
+        "pose_source": '`"estimate"`: route ahead placed from the dead-reckoned pose; `"truth"`: from the true pose',
+        "alignment_s": "time the car stands braked at the start before the first observation (the "
+                       "estimator's alignment at rest), s",
+        "preview_points": "number P of route points ahead in the observation",
+        "preview_spacing_m": "distance between them along the route, m",
+        "progress_weight": "weight of the progress term, per m",
+        "cross_track_weight": "weight of the cross-track term, per m·s",
+        "rollover_penalty": "penalty of a roll-over (ends the episode)",
+        "off_route_penalty": "penalty of leaving the route (ends the episode)",
+        "max_cross_track_m": "cross-track error that counts as leaving the route, m",
+        "rollover_tilt_rad": "tilt of the body's up axis from the vertical that counts as a roll-over, rad (60°)",
+    }
+    ACTION_NAMES = ("throttle", "steering")
+    REWARD_TERMS = ("reward_progress", "reward_cross_track", "reward_rollover", "reward_off_route")
+
+    def __init__(self, *, route: str | Route = "figure8", estimator: str = "biso_plus",
+                 estimator_params: Mapping[str, Any] | None = None, pose_source: str = "estimate",
+                 alignment_s: float = 2.0,
+                 preview_points: int = 10, preview_spacing_m: float = 2.0, progress_weight: float = 1.0,
+                 cross_track_weight: float = 1.0, rollover_penalty: float = 100.0, off_route_penalty: float = 100.0,
+                 max_cross_track_m: float = 5.0, rollover_tilt_rad: float = math.radians(60.0),
+                 random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
+                 sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
+                 sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
+                 gnss_rate_hz: float | None = None,
+                 gnss_profile: str = "consumer", control_rate_hz: float = 50.0,
+                 physics_rate_hz: float = 1000.0, gyro_calibration_s: float = 0.0, action_bounds: str = "clip",
+                 render_mode: str | None = None, render_width: int = 480, render_height: int = 270):
+        arguments = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        EzPickle.__init__(self, **arguments)
+        self.pose_source = _check_choice("pose_source", pose_source, _POSE_SOURCES)
+        self.alignment_s = _check_number("alignment_s", alignment_s, low=0.0, high=60.0)
+        self._alignment_periods = int(round(self.alignment_s * _check_number("control_rate_hz", control_rate_hz,
+                                                                             low=0.0, low_open=True)))
+        if isinstance(preview_points, bool) or not isinstance(preview_points, (int, np.integer)) or preview_points < 1:
+            raise ValueError(f"preview_points must be an int >= 1, got {preview_points!r}")
+        self.preview_points = int(preview_points)
+        self.preview_spacing_m = _check_number("preview_spacing_m", preview_spacing_m, low=0.0, low_open=True)
+        self.weights = {
+            "progress": _check_number("progress_weight", progress_weight, low=0.0),
+            "cross_track": _check_number("cross_track_weight", cross_track_weight, low=0.0),
+            "rollover": _check_number("rollover_penalty", rollover_penalty, low=0.0),
+            "off_route": _check_number("off_route_penalty", off_route_penalty, low=0.0),
+        }
+        self.max_cross_track_m = _check_number("max_cross_track_m", max_cross_track_m, low=0.0, low_open=True)
+        self.rollover_tilt_rad = _check_number("rollover_tilt_rad", rollover_tilt_rad, low=0.0, high=math.pi,
+                                               low_open=True)
+        spec = EstimatorSpec(estimator, dict(estimator_params or {}), label="estimator")
+        super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=(spec,))
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float64)
+        self.observation_structure.update(q_wb=(4,), wheel_speed_mps=(4,), steering_rad=(1,), pose=(3,),
+                                          route_ahead=(self.preview_points, 2))
+        self.observation_space = self._observation_space()
+        self._preview_offsets = self.preview_spacing_m * np.arange(1, self.preview_points + 1)
+        self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
+        self._pose = np.zeros(3)  # navigation pose: rear-axle x, y (m), yaw (rad)
+        self._nav_index = 0
+
+    def _check_route(self, route: Route) -> None:
+        if any(w.reverse for w in route.waypoints):
+            raise ValueError(f"route {route.name!r} has legs driven in reverse; Driving-v0 drives forwards only")
+
+    def _reset_time_s(self) -> float:
+        return max(self._alignment_periods, 1) / self._sim_options["control_rate_hz"]
+
+    def _default_duration_s(self, route: Route) -> float:
+        return math.ceil(1.5 * route.nominal_duration_s + 10.0)
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        info = self._begin_episode(seed, options)
+        vehicle = self._sim.vehicle
+        x, y = self._rear_axle_xy()
+        self._pose[:] = (x, y, vehicle.route.start_xy_yaw[2])
+        self._nav_index = 0
+        self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
+        self._first_period(_HOLD)
+        for _ in range(self._alignment_periods - 1):  # the rest of the alignment
+            self._advance(_HOLD)
+        vehicle.observe_route()
+        info.update(self._state_info())
+        return self._observation(), info
+
+    def step(self, action: Any):
+        self._require_running()
+        a = self._check_action(action)
+        vehicle = self._sim.vehicle
+        throttle, steering = float(a[0]), float(a[1])
+        command = DriverCommand(steer_rad=steering * vehicle.parameters["max_steer_rad"],
+                                drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
+        before = vehicle.driver.state.s_m
+        self._advance(command)
+        vehicle.observe_route()  # progress and cross-track error at the end of the step
+        info = self._state_info()
+        w = self.weights
+        terms = {
+            "reward_progress": w["progress"] * (info["distance_m"] - before),
+            "reward_cross_track": -w["cross_track"] * abs(info["cross_track_m"]) * self.dt,
+            "reward_rollover": -w["rollover"] if info["rolled_over"] else 0.0,
+            "reward_off_route": -w["off_route"] if info["off_route"] else 0.0,
+        }
+        reward = (terms["reward_progress"] + terms["reward_cross_track"] + terms["reward_rollover"]
+                  + terms["reward_off_route"])
+        info.update(terms)
+        terminated = info["rolled_over"] or info["off_route"] or info["finished"]
+        truncated = self._truncated and not terminated
+        self._end_if(terminated, truncated)
+        return self._observation(), reward, terminated, truncated, info
+
+    # ------------------------------------------------------------------ navigation
+    def _rear_axle_xy(self) -> tuple[float, float]:
+        v = self._sim.vehicle
+        p = v.data.sensordata[v.index.rear_axle_pos]
+        return float(p[0]), float(p[1])
+
+    def _on_period(self, truth, outputs) -> None:
+        """Dead-reckon the rear axle over the step's samples: the estimator's forward axis,
+        projected on the horizontal, times the rear axle's speed (no sideslip there).
+
+        The speed comes from the undriven front wheels, as a car's odometry does (the driven
+        rear wheels slip under torque): in the bicycle model the rear axle moves at the front
+        wheels' speed times cos(steering angle)."""
+        q = outputs["estimator"].q_wb
+        if not len(q):
+            return
+        self._q_est = q[-1].copy()
+        vehicle = self._sim.vehicle
+        cos_steer = math.cos(float(vehicle.data.sensordata[vehicle.index.steering_angle][0]))
+        _dead_reckon(q, truth.wheel_rates, 0.5 * vehicle.index.wheel_radius_m * cos_steer, 1.0 / self.imu_rate_hz,
+                     self._pose)
+
+    def _true_pose(self) -> tuple[float, float, float]:
+        x, y = self._rear_axle_xy()
+        w, qx, qy, qz = self._newest.q_wb[0]
+        return x, y, math.atan2(2.0 * (qx * qy + w * qz), 1.0 - 2.0 * (qy * qy + qz * qz))
+
+    def _route_ahead(self, x: float, y: float, yaw: float) -> np.ndarray:
+        path = self._sim.route.path
+        self._nav_index, s, _ = path.locate(x, y, self._nav_index)
+        out = np.empty((self.preview_points, 2))
+        _route_ahead(path.x_m, path.y_m, path.s_m, s, self._preview_offsets, x, y, yaw, out)
+        return out
+
+    # ------------------------------------------------------------------ parts
+    def _state_info(self) -> dict[str, Any]:
+        vehicle = self._sim.vehicle
+        state = vehicle.driver.state
+        newest = self._newest
+        w, x, y, _ = newest.q_wb[0]
+        tilt = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
+        true_pose = self._true_pose()
+        return {
+            "distance_m": state.s_m,
+            "cross_track_m": state.cross_track_m,
+            "speed_mps": float(newest.speed_mps[0]),
+            "tilt_rad": tilt,
+            "attitude_error_rad": _angle(self._q_est, newest.q_wb[0]),
+            "nav_pose": self._pose.copy(),
+            "true_pose": np.array(true_pose),
+            "pose_error_m": math.hypot(self._pose[0] - true_pose[0], self._pose[1] - true_pose[1]),
+            "heading_error_rad": math.remainder(self._pose[2] - true_pose[2], 2.0 * math.pi),
+            "rolled_over": tilt > self.rollover_tilt_rad,
+            "off_route": abs(state.cross_track_m) > self.max_cross_track_m,
+            "finished": state.s_m >= self._sim.route.path.length_m - _END_TOLERANCE_M,
+        }
+
+    def _observation(self) -> np.ndarray:
+        vehicle = self._sim.vehicle
+        pose = self._pose if self.pose_source == "estimate" else np.array(self._true_pose())
+        wheels = self._newest.wheel_rates[0] * vehicle.index.wheel_radius_m
+        steering = vehicle.data.sensordata[vehicle.index.steering_angle]
+        return np.concatenate([*self._sensor_parts(), self._q_est, wheels, steering, pose,
+                               self._route_ahead(*pose).ravel()])
+
+
+finish_docstring(DrivingEnv)

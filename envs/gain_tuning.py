@@ -1,0 +1,308 @@
+"""``biso_cosim/GainTuning-v0``: the agent sets the correction gains of the estimator in the loop."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any, Mapping
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
+from biso_cosim.envs._docs import finish_docstring
+from biso_cosim.estimators import describe_estimator, make_estimator
+from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
+from biso_cosim.envs._kernels import _angle, _mean_angle
+from biso_cosim.routes import Route
+
+__all__ = ["GainTuningEnv", "DEFAULT_TUNING", "CROSS_LINK_RATIO"]
+
+CROSS_LINK_RATIO = "cross_link_ratio"
+"""The environment's own BISO parameter r = √3·k_p / k: with ``cutoff_hz`` it sets
+k = 2π f_c/√2 and k_p = r·2π f_c/√6 (r = 1: the paper's Butterworth design, damping 0.707;
+r = 0: no cross-links). DESIGN.md §5, reading D."""
+
+DEFAULT_TUNING: dict[str, dict[str, tuple[float, float, str]]] = {
+    "biso": {"cutoff_hz": (0.01, 20.0, "log"), CROSS_LINK_RATIO: (0.0, 2.0, "linear")},
+    "biso_plus": {"k_tilt": (0.1, 50.0, "log"), "k_heading": (0.005, 5.0, "log"), "tau_acc_s": (0.1, 10.0, "log")},
+}
+"""Tuned parameters per estimator: name → (low, high, scale); the action maps [-1, 1] onto
+[low, high] linearly or logarithmically (scale ``"linear"`` or ``"log"``)."""
+
+_SCALES = ("linear", "log")
+
+
+def _check_tuning(estimator: str, tuning: Mapping[str, Any]) -> dict[str, tuple[float, float, str]]:
+    if not isinstance(tuning, Mapping) or not tuning:
+        raise ValueError(f"tuning must be a non-empty mapping name -> (low, high, scale), got {tuning!r}")
+    known = {row["name"] for row in describe_estimator(estimator)["params"]}
+    if estimator == "biso":
+        known.add(CROSS_LINK_RATIO)
+    out = {}
+    for name, entry in tuning.items():
+        if name not in known:
+            raise ValueError(f"tuning: {estimator!r} has no parameter {name!r}; known: {sorted(known)}")
+        try:
+            low, high, scale = entry
+            low, high = float(low), float(high)
+        except (TypeError, ValueError):
+            raise ValueError(f"tuning[{name!r}] must be (low, high, 'linear' or 'log'), got {entry!r}") from None
+        if scale not in _SCALES or not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ValueError(f"tuning[{name!r}] must be (low, high, 'linear' or 'log') with finite low < high, "
+                             f"got {entry!r}")
+        if scale == "log" and low <= 0.0:
+            raise ValueError(f"tuning[{name!r}]: a log scale needs low > 0, got {entry!r}")
+        out[name] = (low, high, scale)
+    if CROSS_LINK_RATIO in out and "cutoff_hz" not in out:
+        raise ValueError(f"tuning: {CROSS_LINK_RATIO!r} needs 'cutoff_hz' tuned too (it sets k and k_p together)")
+    return out
+
+
+class GainTuningEnv(CosimEnv, EzPickle):
+    r"""
+    ## Description
+    The car drives a route with the scripted driver and the virtual MPU-9250; the estimator
+    in the loop (the faithful BISO of Aleshkin et al. 2024 by default, or `biso_plus`) runs
+    on its samples. Each step the agent sets the estimator's correction gains for the next
+    control period (a gain schedule; a constant action is a fixed tuning), and is rewarded
+    with minus the estimator's attitude error. A second copy of the estimator with fixed
+    gains runs on the same samples: for `biso` the paper's gains k = 44.4 s⁻¹, k_p = 25.64 s⁻¹
+    (a 10 Hz Butterworth design), for others their defaults. `info` reports its error every
+    step as the baseline.
+
+    Gains change without a jump in the estimate (`Estimator.set_params`).
+
+    ## Action Space
+    A `Box(-1, 1, (m,), float64)`, one entry per tuned parameter, mapped onto its range
+    linearly or logarithmically (`tuning`). Default for `biso`:
+
+    | Num | Parameter | Min | Max | Scale | Unit |
+    |---|---|---|---|---|---|
+    | 0 | `cutoff_hz`: Butterworth design frequency f_c, k = 2π f_c/√2 | 0.01 | 20 | log | Hz |
+    | 1 | `cross_link_ratio` r = √3 k_p/k (1: the paper's design, 0: no cross-links) | 0 | 2 | linear | - |
+
+    Default for `biso_plus`: `k_tilt` (0.1–50 s⁻¹, log), `k_heading` (0.005–5 s⁻¹, log),
+    `tau_acc_s` (0.1–10 s, log). `env.unwrapped.params_from_action(a)` and
+    `action_from_params(**values)` convert. NaN/inf or a wrong shape raise `ValueError`;
+    out-of-bounds values are clipped (or refused with `action_bounds="raise"`).
+
+    ## Observation Space
+    A `Box(-inf, inf, (11·n + 4 + m,), float64)` (`+9` with GNSS), in this order
+    (`env.unwrapped.observation_structure`):
+
+    - *imu (n × 11):* the newest `n = ceil(ODR / control rate)` IMU samples as in
+      `AttitudeEstimation-v0` (gyro rad/s, accelerometer m/s², magnetometer µT, `mag_fresh`,
+      `new`);
+    - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix as in `AttitudeEstimation-v0`;
+    - *q_wb (4):* the tuned estimator's attitude at the newest sample;
+    - *gains (m):* the gains in force, as the normalised action that sets them.
+
+    ## Rewards
+    The total reward is: ***reward*** *=* *reward_attitude* *=* −(mean over the step's IMU
+    samples of ∠(q_tuned, q_true)) in rad: the error of the estimate the gains set by the
+    action produced during this step.
+
+    `info` carries the reward term and `error_rad` (= −reward), `baseline_error_rad` (the
+    same mean for the fixed-gain copy), `params` (the tuned values in force, with the cross-link
+    ratio also k and k_p), and at the newest sample `t_s`, `q_wb_true`, `q_wb_tuned`,
+    `q_wb_baseline`.
+
+    ## Starting State
+    As `AttitudeEstimation-v0`: the car at rest at the start of the route; the tuned
+    estimator starts with the baseline's gains; `reset` advances one control period.
+
+    ## Episode End
+    ### Termination
+    Never.
+
+    ### Truncation
+    After `episode_duration_s` simulated seconds (default: the route's nominal duration plus
+    10 s).
+
+    ## Arguments
+    {arguments}
+
+    ## Version History
+    * v0: Initial version.
+    """
+
+    ARGUMENTS = {
+        "estimator": '`"biso"` or `"biso_plus"` (or another registered estimator with a `tuning`)',
+        "estimator_params": "fixed parameters of both copies; the baseline runs with them and its defaults",
+        "tuning": "tuned parameters: name → (low, high, `\"linear\"` or `\"log\"`); "
+                  "None: `DEFAULT_TUNING[estimator]`",
+    }
+
+    def __init__(self, *, route: str | Route = "figure8", estimator: str = "biso",
+                 estimator_params: Mapping[str, Any] | None = None,
+                 tuning: Mapping[str, tuple[float, float, str]] | None = None,
+                 random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
+                 sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
+                 sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
+                 gnss_rate_hz: float | None = None,
+                 gnss_profile: str = "consumer", control_rate_hz: float = 50.0,
+                 physics_rate_hz: float = 1000.0, gyro_calibration_s: float = 0.0, action_bounds: str = "clip",
+                 render_mode: str | None = None, render_width: int = 480, render_height: int = 270):
+        arguments = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
+        EzPickle.__init__(self, **arguments)
+        if tuning is None:
+            if estimator not in DEFAULT_TUNING:
+                raise ValueError(f"estimator {estimator!r} has no default tuning ({sorted(DEFAULT_TUNING)}); "
+                                 f"give tuning=...")
+            tuning = DEFAULT_TUNING[estimator]
+        self.tuning = _check_tuning(estimator, tuning)
+        self.estimator = estimator
+        fixed = dict(estimator_params or {})
+        clash = sorted(set(fixed) & (set(self.tuning) | ({"k", "k_p"} if CROSS_LINK_RATIO in self.tuning else set())))
+        if clash:
+            raise ValueError(f"estimator_params {clash} are tuned by the action; remove them")
+        specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
+        super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=specs)
+        self.ACTION_NAMES = tuple(self.tuning)
+        m = len(self.tuning)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float64)
+        self.observation_structure.update(q_wb=(4,), gains=(m,))
+        self.observation_space = self._observation_space()
+        baseline = self._sim.estimators["baseline"].params
+        # what reset restores in the tuned copy: the baseline's own values of what the action sets
+        names = ("k", "k_p", "cutoff_hz") if CROSS_LINK_RATIO in self.tuning else tuple(self.tuning)
+        self._initial = {name: getattr(baseline, name) for name in names}
+        self._initial_gains = self._normalise(self._tuned_values(baseline))
+        self._check_corners(fixed)
+        self._gains = self._initial_gains.copy()
+        self._tuned_q = np.array([1.0, 0.0, 0.0, 0.0])
+        self._baseline_q = self._tuned_q.copy()
+
+    def _tuned_values(self, params: Any) -> dict[str, float]:
+        """The tuned parameters' values in an estimator's parameter record."""
+        values = {}
+        for name in self.tuning:
+            if isinstance(params, BisoParams) and name in ("k", "k_p", "cutoff_hz", CROSS_LINK_RATIO):
+                value = _biso_gains_of(params)[name]
+            else:
+                value = getattr(params, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"tuning: {name!r} has no single numeric value in the baseline ({value!r}); "
+                                 f"choose other tuned parameters")
+            values[name] = float(value)
+        return values
+
+    def _check_corners(self, fixed: dict[str, Any]) -> None:
+        """Every corner of the tuning box must be a valid estimator (e.g. stable gains)."""
+        for corner in itertools.product((-1.0, 1.0), repeat=len(self.tuning)):
+            changes = self._changes(self.params_from_action(np.array(corner)))
+            try:
+                make_estimator(self.estimator, self.imu_rate_hz, **{**fixed, **changes})
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"tuning: the corner {changes} of the tuning box is not a valid "
+                                 f"{self.estimator!r}: {exc}") from None
+
+    # ------------------------------------------------------------------ conversions
+    def params_from_action(self, action: Any) -> dict[str, float]:
+        """The physical parameter values a normalised action stands for."""
+        a = np.asarray(action, dtype=np.float64)
+        out = {}
+        for (name, (low, high, scale)), x in zip(self.tuning.items(), a):
+            u = 0.5 * (float(x) + 1.0)
+            out[name] = low * (high / low) ** u if scale == "log" else low + u * (high - low)
+        return out
+
+    def action_from_params(self, **values: float) -> np.ndarray:
+        """The normalised action that sets ``values`` (every tuned parameter, within its range)."""
+        if set(values) != set(self.tuning):
+            raise ValueError(f"give every tuned parameter: {list(self.tuning)}, got {sorted(values)}")
+        for name, (low, high, _) in self.tuning.items():
+            if not low <= float(values[name]) <= high:
+                raise ValueError(f"{name} must be in [{low}, {high}], got {values[name]!r}")
+        return self._normalise(values)
+
+    def _normalise(self, values: Mapping[str, float]) -> np.ndarray:
+        a = np.empty(len(self.tuning))
+        for i, (name, (low, high, scale)) in enumerate(self.tuning.items()):
+            v = float(values[name])
+            u = math.log(v / low) / math.log(high / low) if scale == "log" else (v - low) / (high - low)
+            a[i] = 2.0 * u - 1.0
+        return a
+
+    def _changes(self, values: dict[str, float]) -> dict[str, Any]:
+        """Estimator parameter changes for tuned values (the cross-link ratio becomes k, k_p)."""
+        changes = dict(values)
+        if CROSS_LINK_RATIO in changes:
+            ratio = changes.pop(CROSS_LINK_RATIO)
+            k, kp = gains_from_cutoff(changes.pop("cutoff_hz"), self._sim.estimators["tuned"].params.reading)
+            changes.update(k=k, k_p=ratio * kp, cutoff_hz=None)
+        return changes
+
+    # ------------------------------------------------------------------ API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        info = self._begin_episode(seed, options)
+        self._sim.estimators["tuned"].set_params(**self._initial)  # Estimator.reset keeps parameters
+        self._gains = self._initial_gains.copy()
+        _, truth, outputs = self._first_period()
+        info.update(self._measure(truth, outputs))
+        info["params"] = self._params_in_force()
+        return self._observation(), info
+
+    def step(self, action: Any):
+        self._require_running()
+        a = self._check_action(action)
+        if not np.array_equal(a, self._gains):
+            self._sim.estimators["tuned"].set_params(**self._changes(self.params_from_action(a)))
+            self._gains = a
+        _, truth, outputs = self._advance()
+        info = self._measure(truth, outputs)
+        info["params"] = self._params_in_force()
+        reward = -info["error_rad"]
+        info["reward_attitude"] = reward
+        truncated = self._truncated
+        self._end_if(False, truncated)
+        return self._observation(), reward, False, truncated, info
+
+    # ------------------------------------------------------------------ parts
+    def _params_in_force(self) -> dict[str, float]:
+        """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
+        params = self._sim.estimators["tuned"].params
+        values = self._tuned_values(params)
+        if CROSS_LINK_RATIO in self.tuning:
+            gains = _biso_gains_of(params)
+            values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
+        return values
+
+    def _measure(self, truth, outputs) -> dict[str, Any]:
+        """Mean errors of both copies over the step's samples, and the state at the newest."""
+        tuned, baseline = outputs["tuned"].q_wb, outputs["baseline"].q_wb
+        if len(tuned):
+            self._tuned_q, self._baseline_q = tuned[-1].copy(), baseline[-1].copy()
+            error = _mean_angle(tuned, truth.q_wb)
+            baseline_error = _mean_angle(baseline, truth.q_wb)
+        else:  # no sample this step (ODR below the control rate): the newest estimate stands
+            q_true = self._newest.q_wb[0]
+            error = _angle(self._tuned_q, q_true)
+            baseline_error = _angle(self._baseline_q, q_true)
+        return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(self._newest.t_s[0]),
+                "q_wb_true": self._newest.q_wb[0].copy(), "q_wb_tuned": self._tuned_q.copy(),
+                "q_wb_baseline": self._baseline_q.copy()}
+
+    def _observation(self) -> np.ndarray:
+        return np.concatenate([*self._sensor_parts(), self._tuned_q, self._gains])
+
+
+def _biso_gains_of(params: Any) -> dict[str, Any]:
+    """The gains a BISO parameter record resolves to: k, k_p (the paper's when None), and the
+    design frequency f_c and cross-link ratio r they correspond to (per-channel gains: None)."""
+    if params.cutoff_hz is not None:
+        k, kp = gains_from_cutoff(params.cutoff_hz, params.reading)
+        return {"k": k, "k_p": kp, "cutoff_hz": float(params.cutoff_hz), CROSS_LINK_RATIO: 1.0}
+    k = PAPER_K if params.k is None else params.k
+    kp = PAPER_K_P if params.k_p is None else params.k_p
+    if not isinstance(k, (int, float)) or not isinstance(kp, (int, float)):
+        return {"k": k, "k_p": kp, "cutoff_hz": None, CROSS_LINK_RATIO: None}
+    k1, kp1 = gains_from_cutoff(1.0, params.reading)  # gains are proportional to f_c
+    cutoff = k / k1
+    return {"k": k, "k_p": kp, "cutoff_hz": cutoff, CROSS_LINK_RATIO: kp / (kp1 * cutoff) if cutoff > 0.0 else None}
+
+
+finish_docstring(GainTuningEnv)

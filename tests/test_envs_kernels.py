@@ -1,0 +1,84 @@
+"""Each jitted kernel of the environments against a slow plain-Python/NumPy twin."""
+
+import math
+
+import numpy as np
+import pytest
+
+from biso_cosim.envs._kernels import _angle, _dead_reckon, _mean_angle, _push_window, _route_ahead
+from biso_cosim.envs.procedural import random_route
+from biso_cosim.frames import quat_angle_between
+
+
+def push_reference(values, gyro, accel, mag, fresh):
+    """The window in plain NumPy: stack old rows (marked not new) and new rows, keep the last n."""
+    n = values.shape[0]
+    old = values.copy()
+    old[:, 10] = 0.0
+    finite = np.isfinite(mag).all(axis=1)
+    new = np.column_stack([gyro, accel, np.where(finite[:, None], mag, 0.0), fresh & finite, np.ones(len(gyro))])
+    return np.vstack([old, new])[-n:]
+
+
+@pytest.mark.parametrize("slots", [1, 3, 4])
+def test_push_window_matches_its_reference(slots):
+    rng = np.random.default_rng(slots)
+    values = np.zeros((slots, 11))
+    expected = values.copy()
+    for _ in range(60):
+        k = int(rng.integers(0, slots + 3))
+        gyro, accel, mag = rng.normal(size=(3, k, 3))
+        mag[rng.random(k) < 0.2, int(rng.integers(3))] = np.nan  # AK8963 powered down
+        fresh = rng.random(k) < 0.5
+        _push_window(values, gyro, accel, mag, fresh)
+        expected = push_reference(expected, gyro, accel, mag, fresh)
+        np.testing.assert_array_equal(values, expected)
+
+
+def test_angle_is_quat_angle_between_bit_for_bit():
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(500, 4)) * rng.uniform(0.1, 3.0, (500, 1))  # any non-zero length
+    q = rng.normal(size=(500, 4))
+    q[:50] = -p[:50]  # the same attitude
+    expected = quat_angle_between(p, q)
+    got = np.array([_angle(p[i], q[i]) for i in range(len(p))])
+    np.testing.assert_array_equal(got, expected)
+    assert np.all(got[:50] < 1e-7)
+    total = 0.0
+    for value in expected[:7]:
+        total += value
+    assert _mean_angle(p[:7], q[:7]) == total / 7
+
+
+def test_dead_reckon_matches_a_plain_loop():
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(9, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    wheels = rng.uniform(0.0, 30.0, (9, 4))
+    pose = np.array([1.0, -2.0, 0.3])
+    x, y = pose[0], pose[1]
+    for i in range(9):
+        w, qx, qy, qz = q[i]
+        fx, fy = 1.0 - 2.0 * (qy * qy + qz * qz), 2.0 * (qx * qy + w * qz)
+        v = 0.158 * (wheels[i, 0] + wheels[i, 1])
+        x += 0.005 * v * fx
+        y += 0.005 * v * fy
+    _dead_reckon(q, wheels, 0.158, 0.005, pose)
+    assert pose[0] == x and pose[1] == y and pose[2] == math.atan2(fy, fx)
+    _dead_reckon(q[:0], wheels[:0], 0.158, 0.005, pose)  # no samples: nothing moves
+    assert pose[0] == x and pose[2] == math.atan2(fy, fx)
+
+
+def test_route_ahead_matches_index_at():
+    path = random_route(4).path
+    offsets = 2.5 * np.arange(1, 13)
+    rng = np.random.default_rng(2)
+    for s in list(rng.uniform(0.0, path.length_m, 20)) + [0.0, path.length_m - 3.0, path.length_m + 5.0]:
+        x, y, yaw = rng.normal(0.0, 30.0), rng.normal(0.0, 30.0), rng.uniform(-math.pi, math.pi)
+        out = np.empty((len(offsets), 2))
+        _route_ahead(path.x_m, path.y_m, path.s_m, s, offsets, x, y, yaw, out)
+        for i, d in enumerate(offsets):
+            j = path.index_at(s + d)
+            dx, dy = path.x_m[j] - x, path.y_m[j] - y
+            expected = (math.cos(yaw) * dx + math.sin(yaw) * dy, -math.sin(yaw) * dx + math.cos(yaw) * dy)
+            assert tuple(out[i]) == expected

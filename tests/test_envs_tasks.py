@@ -1,0 +1,350 @@
+"""What the environments compute: rewards against analytic cases, the observation against the
+co-simulation's own sample stream (bit for bit), the tuned estimator against a standalone one,
+dead reckoning against a plain reference, and the procedural routes."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import biso_cosim.envs  # noqa: F401  (registers the ids)
+from biso_cosim.cosim import CoSimulation
+from biso_cosim.envs import random_route
+from biso_cosim.envs._common import IMU_FIELDS
+from biso_cosim.envs.gain_tuning import CROSS_LINK_RATIO
+from biso_cosim.estimators import make_estimator
+from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, gains_from_cutoff
+from biso_cosim.frames import euler_from_quat, quat_angle_between, quat_from_rotvec, quat_multiply
+from biso_cosim.routes import parse_route
+
+SHORT = {"episode_duration_s": 1.5}
+
+
+def straight_route(length_m=60.0, speed_mps=6.0):
+    """An open straight road east, on flat ground."""
+    return parse_route({
+        "name": "straight", "description": "test straight", "closed": False,
+        "driving": {"default_speed_mps": speed_mps, "start_wait_s": 0.5},
+        "waypoint": [{"x_m": 0.0, "y_m": 0.0}, {"x_m": length_m, "y_m": 0.0}],
+    })
+
+
+# --------------------------------------------------------------------------------------
+# AttitudeEstimation
+# --------------------------------------------------------------------------------------
+
+
+def test_reward_is_minus_the_rotation_angle_to_the_truth():
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", **SHORT)
+    env.reset(seed=0)
+    core = env.unwrapped
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    for angle in (0.0, 0.1, 1.0, 3.0):
+        q_true = core._newest.q_wb[0]
+        q_action = quat_multiply(q_true, quat_from_rotvec(angle * axis))
+        sign = -1.0 if angle == 1.0 else 1.0  # q and -q are the same attitude
+        _, reward, _, _, info = env.step(sign * 0.5 * q_action)  # any length: it is normalised
+        assert reward == pytest.approx(-angle, abs=1e-9)
+        assert reward == info["reward_attitude"] == -info["error_rad"]
+        np.testing.assert_array_equal(info["q_wb_true"], q_true)
+
+
+def test_euler_actions_mean_roll_pitch_yaw():
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="euler", **SHORT)
+    env.reset(seed=0)
+    for _ in range(5):
+        roll, pitch, yaw = euler_from_quat(env.unwrapped._newest.q_wb[0])
+        _, reward, *_ = env.step(np.array([roll, pitch, yaw]))
+        assert reward == pytest.approx(0.0, abs=1e-7)
+        _, reward, *_ = env.step(np.array([roll, pitch, yaw + 0.2]))
+        assert reward == pytest.approx(-0.2, abs=1e-6)
+
+
+def test_baseline_as_the_action_scores_the_baseline_error():
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", observe_baseline=True, **SHORT)
+    obs, info = env.reset(seed=4)
+    total, baseline_total = 0.0, 0.0
+    while True:
+        baseline_q = env.unwrapped.split_observation(obs)["baseline_q_wb"]
+        obs, reward, terminated, truncated, info = env.step(baseline_q)
+        # info is about the instant the action was judged: that of the previous observation
+        np.testing.assert_array_equal(info["q_wb_baseline"], baseline_q)
+        assert reward == -info["baseline_error_rad"]
+        total += reward
+        baseline_total -= info["baseline_error_rad"]
+        if terminated or truncated:
+            break
+    assert total == baseline_total and total < 0.0
+
+
+@pytest.mark.parametrize(("control_rate_hz", "physics_rate_hz"), [(50.0, 1000.0), (80.0, 2000.0), (40.0, 1000.0)])
+def test_observation_holds_the_sensor_stream_exactly(control_rate_hz, physics_rate_hz):
+    """The IMU rows are the co-simulation's samples, newest last, with `new` marking the
+    step's own; a BISO fed from the observation reproduces the baseline bit for bit."""
+    kwargs = dict(control_rate_hz=control_rate_hz, physics_rate_hz=physics_rate_hz, episode_duration_s=1.0)
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", **kwargs)
+    obs, info = env.reset(seed=6)
+    core = env.unwrapped
+    reference = CoSimulation("figure8", duration_s=2.0, seed=info["sensor_seed"], estimators=("biso",),
+                             control_rate_hz=control_rate_hz, physics_rate_hz=physics_rate_hz,
+                             sensor_profile=core.sim.imu.profile, gyro_calibration_s=core.sim.gyro_calibration_s)
+    stream = []
+    policy = make_estimator("biso", core.imu_rate_hz, declination_rad=core.sim.earth.declination_rad)
+    slots = core.imu_slots
+    assert slots == math.ceil(200.0 / control_rate_hz)
+    while True:
+        samples, _, _ = reference.step()
+        stream.extend(np.column_stack([samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh]))
+        imu = core.split_observation(obs)["imu"]
+        new = imu[:, IMU_FIELDS.index("new")] == 1.0
+        assert new.sum() == len(samples) and (not len(samples) or new[-1])
+        expected = np.array(stream[-slots:])
+        np.testing.assert_array_equal(imu[slots - len(expected):, :10], expected)
+        q = policy.update(imu[new, 0:3], imu[new, 3:6], imu[new, 6:9]).q_wb[-1]
+        obs, _, _, truncated, info = env.step(q)
+        assert info["error_rad"] == info["baseline_error_rad"]  # the policy is the baseline
+        if truncated:
+            break
+
+
+def test_gnss_part_holds_the_receivers_newest_fix():
+    """The observed fix is the one a receiver with the episode's GNSS seed delivers from the
+    truth at the IMU samples; an ideal receiver reports the truth at the fix's epoch."""
+    from biso_cosim.envs._common import GNSS_FIELDS
+    from biso_cosim.sensors.gnss import GnssReceiver
+
+    for profile in ("consumer", "ideal"):
+        env = gym.make("biso_cosim/AttitudeEstimation-v0", gnss_rate_hz=5.0, gnss_profile=profile,
+                       episode_duration_s=2.0)
+        obs, info = env.reset(seed=8)
+        core = env.unwrapped
+        receiver = GnssReceiver(profile, seed=info["gnss_seed"], rate_hz=5.0, site=core.route.site,
+                                input_rate_hz=core.imu_rate_hz)
+        delivered = 0
+        while True:
+            truth = core.sim._log["truth"][-1]
+            fixes = receiver.simulate(truth.pos_w, truth.vel_w)
+            gnss = dict(zip(GNSS_FIELDS, core.split_observation(obs)["gnss"]))
+            assert gnss["new"] == float(len(fixes) > 0)
+            if len(fixes):
+                delivered += 1
+                assert gnss["valid"] == 1.0
+                np.testing.assert_array_equal([gnss["pos_e"], gnss["pos_n"], gnss["pos_u"]], fixes.pos_w[-1])
+                np.testing.assert_array_equal([gnss["vel_e"], gnss["vel_n"], gnss["vel_u"]], fixes.vel_w[-1])
+                assert gnss["age_s"] == pytest.approx(truth.t_s[-1] - fixes.t_s[-1], abs=1e-12)
+                if profile == "ideal":  # no errors, no latency: the truth at the epoch
+                    at = np.flatnonzero(np.isclose(truth.t_s, fixes.t_s[-1], atol=1e-9))
+                    np.testing.assert_allclose(fixes.pos_w[-1], truth.pos_w[at[0]], atol=1e-9)
+            obs, _, _, truncated, info = env.step(np.array([1.0, 0.0, 0.0, 0.0]))
+            if truncated:
+                break
+        assert delivered == 10  # 5 Hz over 2 s
+
+
+# --------------------------------------------------------------------------------------
+# GainTuning
+# --------------------------------------------------------------------------------------
+
+
+def test_gain_mapping_round_trips_and_hits_the_ends():
+    env = gym.make("biso_cosim/GainTuning-v0", **SHORT).unwrapped
+    assert env.params_from_action(np.array([-1.0, -1.0])) == {"cutoff_hz": 0.01, CROSS_LINK_RATIO: 0.0}
+    top = env.params_from_action(np.array([1.0, 1.0]))
+    assert top["cutoff_hz"] == pytest.approx(20.0, rel=1e-12) and top[CROSS_LINK_RATIO] == 2.0
+    middle = env.params_from_action(np.zeros(2))
+    assert middle["cutoff_hz"] == pytest.approx(math.sqrt(0.01 * 20.0), rel=1e-12)  # log scale
+    values = {"cutoff_hz": 0.37, CROSS_LINK_RATIO: 0.6}
+    back = env.params_from_action(env.action_from_params(**values))
+    assert back == pytest.approx(values, rel=1e-12)
+    with pytest.raises(ValueError, match="cutoff_hz"):
+        env.action_from_params(cutoff_hz=50.0, cross_link_ratio=1.0)
+    # the observed gains at reset are the paper's: f_c = k√2/(2π), r = √3 k_p/k
+    obs, info = env.reset(seed=0)
+    assert info["params"]["cutoff_hz"] == pytest.approx(PAPER_K * math.sqrt(2.0) / (2.0 * math.pi), rel=1e-12)
+    assert info["params"][CROSS_LINK_RATIO] == pytest.approx(math.sqrt(3.0) * PAPER_K_P / PAPER_K, rel=1e-12)
+    gains = env.split_observation(obs)["gains"]
+    np.testing.assert_allclose(gains, env.action_from_params(cutoff_hz=info["params"]["cutoff_hz"],
+                                                             cross_link_ratio=info["params"][CROSS_LINK_RATIO]))
+    assert (info["params"]["k"], info["params"]["k_p"]) == (PAPER_K, PAPER_K_P)
+    _, _, _, _, info = env.step(gains)  # the gains in force: nothing to change
+    assert (info["params"]["k"], info["params"]["k_p"]) == (PAPER_K, PAPER_K_P)
+
+
+def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
+    env = gym.make("biso_cosim/GainTuning-v0", episode_duration_s=2.0)
+    obs, info = env.reset(seed=2)
+    core = env.unwrapped
+    standalone = make_estimator("biso", core.imu_rate_hz, declination_rad=core.sim.earth.declination_rad)
+    rng = np.random.default_rng(0)
+    imu = core.split_observation(obs)["imu"]
+    standalone.update(imu[:, 0:3], imu[:, 3:6], imu[:, 6:9])  # the reset period, paper gains
+    step = 0
+    while True:
+        if step % 20 == 0:  # a new gain every 20 steps
+            action = rng.uniform(-1.0, 1.0, 2)
+            values = core.params_from_action(action)
+            k, kp = gains_from_cutoff(values["cutoff_hz"])  # k = ω_n/√2, k_p = r·ω_n/√6
+            standalone.set_params(k=k, k_p=values[CROSS_LINK_RATIO] * kp)
+        obs, reward, _, truncated, info = env.step(action)
+        imu = core.split_observation(obs)["imu"]
+        q = standalone.update(imu[:, 0:3], imu[:, 3:6], imu[:, 6:9]).q_wb
+        np.testing.assert_array_equal(info["q_wb_tuned"], q[-1])
+        assert info["params"]["k"] == k and info["params"]["k_p"] == values[CROSS_LINK_RATIO] * kp
+        step += 1
+        if truncated:
+            break
+
+
+def test_gain_tuning_reward_is_the_mean_error_over_the_step():
+    env = gym.make("biso_cosim/GainTuning-v0", **SHORT)
+    env.reset(seed=1)
+    core = env.unwrapped
+    for _ in range(10):
+        _, reward, _, _, info = env.step(np.array([0.3, -0.2]))
+        truth = core.sim._log["truth"][-1]
+        tuned = core.sim._est_log["tuned"][-1].q_wb
+        total = 0.0
+        for angle in quat_angle_between(tuned, truth.q_wb):
+            total += angle
+        assert reward == -total / len(tuned) == info["reward_attitude"] == -info["error_rad"]
+
+
+@pytest.mark.parametrize(("tuning", "message"), [
+    ({"k_magic": (0.1, 1.0, "log")}, "no parameter"),
+    ({"cutoff_hz": (0.0, 1.0, "log")}, "low > 0"),
+    ({"cutoff_hz": (2.0, 1.0, "linear")}, "low < high"),
+    ({CROSS_LINK_RATIO: (0.0, 1.0, "linear")}, "needs 'cutoff_hz'"),
+    ({"k_tilt": (0.1, 1.0, "log")}, "no parameter"),  # a biso_plus parameter
+])
+def test_bad_tuning_is_refused(tuning, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("biso_cosim/GainTuning-v0", tuning=tuning)
+
+
+def test_a_tuning_box_with_unstable_corners_is_refused():
+    # k = 0 with k_p > 0 has poles ±i√3k_p: not asymptotically stable, refused by the estimator
+    with pytest.raises(ValueError, match="not a valid"):
+        gym.make("biso_cosim/GainTuning-v0", tuning={"k": (0.0, 10.0, "linear")})
+    env = gym.make("biso_cosim/GainTuning-v0", tuning={"k": (1.0, 100.0, "log"), "k_p": (0.0, 50.0, "linear")})
+    assert env.reset(seed=0)[1]["params"] == {"k": PAPER_K, "k_p": PAPER_K_P}
+
+
+# --------------------------------------------------------------------------------------
+# Driving
+# --------------------------------------------------------------------------------------
+
+
+def pursue(env, obs, point=3, speed_mps=6.0):
+    """Pure pursuit on the observed route ahead, speed from the undriven front wheels."""
+    p = env.unwrapped.split_observation(obs)
+    x, y = p["route_ahead"][point]
+    steer = math.atan(2.0 * 2.7 * math.sin(math.atan2(y, x)) / max(math.hypot(x, y), 1e-3)) / 0.6
+    v = p["wheel_speed_mps"][:2].mean()
+    return np.clip([0.5 * (speed_mps - v), steer], -1.0, 1.0)
+
+
+def test_route_ahead_at_the_start_lies_along_the_road():
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(), pose_source="truth", preview_spacing_m=3.0)
+    obs, info = env.reset(seed=0)
+    ahead = env.unwrapped.split_observation(obs)["route_ahead"]
+    np.testing.assert_allclose(ahead[:, 0], 3.0 * np.arange(1, 11), atol=0.3)  # the sampling step is 0.25 m
+    np.testing.assert_allclose(ahead[:, 1], 0.0, atol=0.02)
+
+
+def test_driving_the_route_earns_its_length():
+    route = straight_route(60.0)
+    env = gym.make("biso_cosim/Driving-v0", route=route, pose_source="truth")
+    obs, info = env.reset(seed=0)
+    terms = dict.fromkeys(env.unwrapped.REWARD_TERMS, 0.0)
+    while True:
+        obs, reward, terminated, truncated, info = env.step(pursue(env, obs))
+        parts = [info[t] for t in env.unwrapped.REWARD_TERMS]
+        assert reward == sum(parts)  # exactly: the same sum in the same order
+        for t in terms:
+            terms[t] += info[t]
+        if terminated or truncated:
+            break
+    assert terminated and info["finished"] and not info["off_route"]
+    assert terms["reward_progress"] == pytest.approx(route.path.length_m, abs=1.5)
+    assert -0.5 < terms["reward_cross_track"] <= 0.0 and terms["reward_rollover"] == terms["reward_off_route"] == 0.0
+
+
+def test_leaving_the_road_ends_the_episode_with_its_penalty():
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), max_cross_track_m=3.0,
+                   off_route_penalty=42.0)
+    env.reset(seed=0)
+    while True:
+        _, reward, terminated, truncated, info = env.step(np.array([0.6, 1.0]))  # full left lock
+        if terminated or truncated:
+            break
+    assert terminated and info["off_route"] and abs(info["cross_track_m"]) > 3.0
+    assert info["reward_off_route"] == -42.0 and info["reward_rollover"] == 0.0
+    assert reward == sum(info[t] for t in env.unwrapped.REWARD_TERMS)
+
+
+def test_dead_reckoning_matches_a_plain_reference():
+    """Straight ahead (steering 0): the navigation pose is the sum over the samples of
+    speed(front wheels) × horizontal forward axis of the estimate / ODR."""
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(), episode_duration_s=4.0)
+    obs, info = env.reset(seed=3)
+    core = env.unwrapped
+    start = info["true_pose"][:2].copy()
+    while True:
+        obs, _, terminated, truncated, info = env.step(np.array([0.4, 0.0]))
+        if terminated or truncated:
+            break
+    run = core.sim.result()
+    q = run.estimates["estimator"][0]
+    radius = core.sim.vehicle.index.wheel_radius_m
+    x, y = start
+    for i in range(len(q)):
+        w, qx, qy, qz = q[i]
+        v = 0.5 * (run.truth.wheel_rates[i, 0] + run.truth.wheel_rates[i, 1]) * radius
+        x += v * (1.0 - 2.0 * (qy * qy + qz * qz)) / core.imu_rate_hz
+        y += v * 2.0 * (qx * qy + w * qz) / core.imu_rate_hz
+    np.testing.assert_allclose(info["nav_pose"][:2], [x, y], rtol=0, atol=1e-6)  # summation order, cos(steering ≈ 0)
+    assert info["true_pose"][0] > 5.0  # it did drive
+
+
+# --------------------------------------------------------------------------------------
+# Procedural routes
+# --------------------------------------------------------------------------------------
+
+
+def test_random_routes_are_reproducible_closed_and_varied():
+    a, b = random_route(21), random_route(21)
+    assert a.waypoints == b.waypoints and a.name == "random-21"
+    assert random_route(22).waypoints != a.waypoints
+    headings = []
+    for seed in range(12):
+        route = random_route(seed, stops=2, hills=1)
+        assert route.closed and route.start_xy_yaw[:2] == (0.0, 0.0)
+        assert len(route.stops) == 3 and len(route.terrain.features) == 1
+        assert 5 + 1 <= len(route.waypoints) <= 8 + 1
+        turns = np.diff(np.unwrap(route.path.heading_rad))
+        assert abs(turns.sum()) == pytest.approx(2.0 * math.pi, abs=0.05)  # one loop, no crossing
+        headings.append(route.start_xy_yaw[2])
+    # start headings spread over the circle
+    assert np.ptp(np.mod(headings, 2.0 * math.pi)) > math.pi
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"corners": (3, 5)}, "corners"),
+    ({"size_m": (100.0, 50.0)}, "low <= high"),
+    ({"hills": -1}, "hills"),
+    ({"stops": 9}, "stops"),
+    ({"bridges": 1}, "unknown option"),
+])
+def test_random_route_options_are_checked(options, message):
+    with pytest.raises(ValueError, match=message):
+        random_route(0, **options)
+
+
+@pytest.mark.slow
+def test_scripted_driver_completes_random_routes():
+    from biso_cosim.cosim import run_route
+
+    for seed in range(3):
+        result = run_route(random_route(seed, hills=1), seed=0, estimators=("biso",))
+        assert result.completed and result.summary()["cross_track_rms_m"] < 0.5
