@@ -41,8 +41,12 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001) -> tuple[mujoco.
         raise ValueError(f"timestep_s must be > 0, got {timestep_s}")
     spec = car_spec()
     spec.option.timestep = timestep_s
+    # the collision plane is hidden (group 3); what is drawn is a plane 2 cm below it, so that
+    # the height-field patches, whose borders lie at z = 0, do not z-fight with the ground
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
-                            material="ground", friction=_GROUND_FRICTION)
+                            material="ground", friction=_GROUND_FRICTION, group=3)
+    spec.worldbody.add_geom(name="ground_visual", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
+                            pos=[0.0, 0.0, -0.02], material="ground", contype=0, conaffinity=0, group=0)
     patches = terrain.patches()
     for k, patch in enumerate(patches):
         # MuJoCo scales normalised data by the elevation size: keep it positive.
