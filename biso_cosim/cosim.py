@@ -143,6 +143,12 @@ class CoSimulation:
         driver does with the gyro offset registers at start-up: use it with the raw
         ``"mpu9250"`` profile, whose ±5 °/s turn-on bias otherwise dominates every gyro-only
         result. 0 (the default) disables it.
+    gnss : the virtual GNSS receiver (:class:`biso_cosim.sensors.GnssReceiver`): ``"auto"``
+        (default) runs one when an estimator takes GNSS fixes, a profile name (``"consumer"``,
+        ``"ideal"``) or a :class:`~biso_cosim.sensors.GnssProfile` always runs one, ``None``
+        never. It sits at the IMU (no lever arm), is seeded from ``seed``, and has no fix in
+        the route's ``gnss_outage`` zones.
+    gnss_rate_hz : its fix rate.
     navigators : dead-reckoning navigators (:class:`biso_cosim.strapdown.StrapdownNavigator`)
         started from the true state at time zero and fed the sensor's increments: names of
         ``NAVIGATOR_PRESETS`` or ``(label, {"coning": ..., "sculling": ..., "position": ...})``.
@@ -153,8 +159,9 @@ class CoSimulation:
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
                  estimators: Iterable[str | EstimatorSpec | tuple] = DEFAULT_ESTIMATORS,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, registers: Mapping[str, int] | None = None,
-                 mounting: Any = None, gyro_calibration_s: float = 0.0, navigators: Iterable = (),
-                 physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0):
+                 mounting: Any = None, gyro_calibration_s: float = 0.0, gnss: Any = "auto",
+                 gnss_rate_hz: float = 5.0, navigators: Iterable = (), physics_rate_hz: float = 1000.0,
+                 control_rate_hz: float = 50.0):
         self.route = load_route(route)
         if duration_s is None:
             duration_s = math.ceil(self.route.nominal_duration_s + 10.0)
@@ -187,6 +194,7 @@ class CoSimulation:
             est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
             self.estimators[spec.key] = est
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
+        self.gnss_receiver = self._make_receiver(gnss, gnss_rate_hz, physics_rate_hz)
         self._setup_navigators(navigators)
         self._calibrate_gyro()
         self._reset_navigators()
@@ -214,11 +222,26 @@ class CoSimulation:
         """Back to time zero with the same seed: a second run repeats the first bit for bit."""
         self.vehicle.reset()
         self.imu.reset(seed=self.seed)
+        if self.gnss_receiver is not None:
+            self.gnss_receiver.reset(seed=self.seed)
         self._calibrate_gyro()
         self._reset_navigators()
         for est in self.estimators.values():
             est.reset()
         self._reset_logs()
+
+    def _make_receiver(self, gnss: Any, rate_hz: float, input_rate_hz: float):
+        from biso_cosim.sensors import GnssReceiver, ZoneOutage
+
+        wanted = any("gnss" in getattr(est, "inputs", ()) for est in self.estimators.values())
+        if gnss is None or gnss is False or (gnss == "auto" and not wanted):
+            if wanted:
+                raise ValueError("gnss=None, but an estimator of this run takes GNSS fixes")
+            return None
+        outages = tuple(ZoneOutage((z.x0_m, z.y0_m), (z.x1_m, z.y1_m), z.half_width_m, label=z.label)
+                        for z in self.route.gnss_outages)
+        return GnssReceiver("consumer" if gnss == "auto" else gnss, seed=self.seed, rate_hz=rate_hz,
+                            site=self.route.site, input_rate_hz=input_rate_hz, outages=outages)
 
     def _setup_navigators(self, navigators: Iterable) -> None:
         """Parameters of the navigators and the increments they need from the sensor."""
@@ -301,6 +324,7 @@ class CoSimulation:
             physics=physics, sensordata=v.data.sensordata.copy(), steps_done=v.steps_done,
             driver=copy.deepcopy(v.driver.state),
             imu=copy.deepcopy(self.imu.get_state()),
+            gnss=None if self.gnss_receiver is None else copy.deepcopy(self.gnss_receiver.get_state()),
             estimators={k: copy.deepcopy(e.get_state()) for k, e in self.estimators.items()},
             navigators={k: copy.deepcopy(n.get_state()) for k, n in self.navigators.items()},
             chunks_done=self._chunks_done,
@@ -329,6 +353,8 @@ class CoSimulation:
         v.steps_done = state.steps_done
         v.driver.state = copy.deepcopy(state.driver)
         self.imu.set_state(copy.deepcopy(state.imu))
+        if self.gnss_receiver is not None:
+            self.gnss_receiver.set_state(copy.deepcopy(state.gnss))
         for key, est in self.estimators.items():
             est.set_state(copy.deepcopy(state.estimators[key]))
         for key, nav in self.navigators.items():
@@ -358,7 +384,7 @@ class CoSimulation:
         self._log_origin_chunk = 0
         self._chunks_done = 0
         self._last_truth_row: Truth | None = None
-        self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": []}
+        self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": [], "gnss": []}
         self._nav_log: dict[str, list] = {k: [] for k in self.navigator_params}
         self._est_log: dict[str, list[Estimate]] = {k: [] for k in self.estimators}
 
@@ -396,15 +422,21 @@ class CoSimulation:
         samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
         self._remove_gyro_offset(samples)
         at_samples = self._truth_at(samples.t_s, truth)
+        fixes = None
+        if self.gnss_receiver is not None:
+            fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
+            self._log["gnss"].append(fixes)
         for label, nav in self.navigators.items():
             self._nav_log[label].append(self._navigate(nav, samples))
         outputs = {}
         for key, est in self.estimators.items():
-            if "speed_mps" in getattr(est, "inputs", ()):
-                outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b,
-                                          speed_mps=self._odometry_mps(at_samples))
-            else:
-                outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b)
+            inputs = getattr(est, "inputs", ())
+            extra = {}
+            if "speed_mps" in inputs:
+                extra["speed_mps"] = self._odometry_mps(at_samples)
+            if "gnss" in inputs:
+                extra["gnss"] = fixes
+            outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
         self._log["truth"].append(at_samples)
         self._log["imu"].append(samples)
         for key, out in outputs.items():
@@ -449,13 +481,18 @@ class CoSimulation:
         if truth is None or len(truth) == 0:
             raise RuntimeError("run() or step() first: nothing has been simulated yet")
         imu = ImuSamples.concatenate(self._log["imu"])
+        gnss = None
+        if self.gnss_receiver is not None:
+            from biso_cosim.sensors import GnssFixes
+
+            gnss = GnssFixes.concatenate(self._log["gnss"])
         estimates = {k: (np.concatenate([o.q_wb for o in outs]), np.concatenate([o.flags for o in outs]))
                      for k, outs in self._est_log.items()}
         navigation = {k: {name: np.concatenate([getattr(o, name) for o in outs]) for name in ("q_wb", "v_w", "p_w")}
                       for k, outs in self._nav_log.items()}
         return RunResult(
             log_start_s=self._log_origin_chunk / self.vehicle.control_rate_hz,
-            route=self.route, truth=truth, imu=imu, estimates=estimates, navigation=navigation,
+            route=self.route, truth=truth, imu=imu, estimates=estimates, navigation=navigation, gnss=gnss,
             specs={s.key: s for s in self.specs},
             seed=self.seed, duration_s=self._chunks_done / self.vehicle.control_rate_hz,
             wall_time_s=wall_time_s, completed=self.vehicle.driver.finished,
@@ -508,6 +545,7 @@ class CoSimState:
     steps_done: int
     driver: Any
     imu: dict
+    gnss: Any
     estimators: dict
     navigators: dict
     chunks_done: int
@@ -532,6 +570,7 @@ class RunResult:
     cross_track_m: np.ndarray
     sensor: dict
     site: dict
+    gnss: Any = None
     log_start_s: float = 0.0
 
     @property
@@ -569,6 +608,8 @@ class RunResult:
             "wall_time_s": self.wall_time_s,
             "sim_seconds_per_wall_second": self.duration_s / self.wall_time_s if self.wall_time_s > 0 else None,
             "cross_track_rms_m": float(np.sqrt(np.mean(self.cross_track_m ** 2))),
+            "gnss": None if self.gnss is None else {
+                "fixes": int(self.gnss.t_s.shape[0]), "valid": int(np.count_nonzero(self.gnss.valid))},
             "start_end_windows_s": windows,
             "truth_start_end_deg": None if windows is None else start_end_difference(self.t_s, truth_angles, *windows),
             "estimators": {},

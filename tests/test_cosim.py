@@ -201,3 +201,19 @@ def test_whole_state_get_set_goes_back_in_time_exactly():
     np.testing.assert_array_equal(third.estimates["biso"][0], first.estimates["biso"][0][-third.t_s.shape[0]:])
     with pytest.raises(ValueError, match="other estimators"):
         CoSimulation("figure8", duration_s=1.0, estimators=["poisson"]).set_state(state)
+
+
+def test_gnss_receiver_in_the_loop_loses_its_fix_in_the_underpass():
+    sim = CoSimulation("loop600", duration_s=40.0, seed=0, gnss="consumer", estimators=["poisson"])
+    run = sim.run()
+    fixes = run.gnss
+    np.testing.assert_allclose(np.diff(fixes.t_s), 0.2, atol=1e-9)  # 5 Hz
+    under = ~fixes.valid
+    assert under.any() and not under[:20].any()
+    # invalid where the antenna was within 10 m of the underpass (x 200..250 m), or reacquiring after it
+    truth_x = np.interp(fixes.t_s[under], run.t_s, run.truth.pos_w[:, 0])
+    assert truth_x.min() > 189.0 and truth_x.max() < 270.0
+    sim.reset()
+    again = sim.run()
+    np.testing.assert_array_equal(again.gnss.pos_w[~under], fixes.pos_w[~under])
+    assert CoSimulation("figure8", duration_s=1.0).gnss_receiver is None  # "auto": nobody needs it

@@ -127,3 +127,13 @@ def test_densify_of_a_circle_from_four_fillets():
     p = densify(xy, np.array([0.0, r, r, r, r]), closed=True)
     np.testing.assert_allclose(np.hypot(p.x_m, p.y_m), r, atol=1e-9)
     assert p.length_m == pytest.approx(2 * math.pi * r, rel=1e-3)
+
+
+def test_gnss_outage_zones_in_route_files():
+    route = parse_route(base(gnss_outage=[{"x0_m": 10.0, "y0_m": 0.0, "x1_m": 40.0, "y1_m": 0.0,
+                                           "half_width_m": 8.0, "label": "tunnel"}]))
+    assert route.gnss_outages[0].label == "tunnel" and route.summary()["gnss_outages"] == 1
+    with pytest.raises(ValueError, match=r"gnss_outage\[0\].*missing \['half_width_m'\]"):
+        parse_route(base(gnss_outage=[{"x0_m": 1.0, "y0_m": 0.0, "x1_m": 2.0, "y1_m": 0.0}]))
+    with pytest.raises(ValueError, match=r"gnss_outage\[0\].half_width_m must be > 0"):
+        parse_route(base(gnss_outage=[{"x0_m": 1.0, "y0_m": 0.0, "x1_m": 2.0, "y1_m": 0.0, "half_width_m": 0}]))

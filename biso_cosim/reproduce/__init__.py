@@ -11,6 +11,7 @@ from pathlib import Path
 
 PAPERS = {
     "aleshkin2024": "Aleshkin et al. (2024): BISO, cross-linked positional correction (seed 000)",
+    "ibrahim2020": "Ibrahim & Lukyanov (2020): GNSS-aided attitude with and without a Kalman filter (seed 002)",
     "litmanovich2002": "Litmanovich (2002): coning, sculling and position from multiple integrals (seed 004)",
 }
 """Reproducible papers: name → what it covers."""

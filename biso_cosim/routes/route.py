@@ -40,6 +40,14 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     radius_m = 60.0
     height_m = 3.0
 
+    [[gnss_outage]]                  # optional: where a GNSS receiver has no fix (a tunnel,
+    x0_m = 200.0                     # the road under a bridge): within half_width_m of the
+    y0_m = 0.0                       # segment from (x0_m, y0_m) to (x1_m, y1_m)
+    x1_m = 260.0
+    y1_m = 0.0
+    half_width_m = 10.0
+    label = "underpass"              # optional
+
 The first waypoint of a closed route must not be rounded: the route starts there at rest
 and ends there at rest, heading along the first leg (or against it, if that leg is driven in
 reverse). Where the direction of travel changes (a cusp: the leg before a waypoint and the
@@ -61,7 +69,7 @@ import numpy as np
 from biso_cosim.routes.path import Path, densify, speed_profile
 from biso_cosim.vehicle.terrain import Terrain
 
-__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "parse_route", "read_route_file"]
+__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "GnssOutageZone", "parse_route", "read_route_file"]
 
 SPACING_M = 0.25
 """Spacing of the dense path samples."""
@@ -115,6 +123,19 @@ class Stop:
 
 
 @dataclass(frozen=True)
+class GnssOutageZone:
+    """Where a GNSS receiver on the route has no fix: within ``half_width_m`` of the segment
+    from (x0_m, y0_m) to (x1_m, y1_m) (a tunnel, the road under a bridge)."""
+
+    x0_m: float
+    y0_m: float
+    x1_m: float
+    y1_m: float
+    half_width_m: float
+    label: str = ""
+
+
+@dataclass(frozen=True)
 class Route:
     name: str
     description: str
@@ -125,6 +146,7 @@ class Route:
     driving: DrivingLimits = field(default_factory=DrivingLimits)
     site: Site = field(default_factory=Site)
     terrain: Terrain = field(default_factory=Terrain)
+    gnss_outages: tuple[GnssOutageZone, ...] = ()
     source: str = ""
 
     @cached_property
@@ -224,6 +246,7 @@ class Route:
             "stops": len(self.stops) - 1,
             "reversing": bool((self.direction < 0).any()),
             "terrain_features": len(self.terrain.features),
+            "gnss_outages": len(self.gnss_outages),
         }
 
 
@@ -231,7 +254,8 @@ class Route:
 # Parsing
 # --------------------------------------------------------------------------------------
 
-_TOP_KEYS = {"format", "name", "description", "excites", "closed", "laps", "driving", "site", "waypoint", "terrain"}
+_TOP_KEYS = {"format", "name", "description", "excites", "closed", "laps", "driving", "site", "waypoint", "terrain",
+             "gnss_outage"}
 
 
 def _number(value, where: str, *, minimum: float | None = None, strict: bool = False) -> float:
@@ -346,9 +370,28 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
     resolution = _number(terrain_data.get("resolution_m", 0.5), f"{where}: terrain.resolution_m", minimum=0.0, strict=True)
     terrain = Terrain.from_dict(terrain_data.get("feature", []), resolution_m=resolution, where=f"{where}: terrain.feature")
 
+    outages = []
+    raw_outages = data.get("gnss_outage", [])
+    if not isinstance(raw_outages, list):
+        raise ValueError(f"{where}: gnss_outage must be an array of tables ([[gnss_outage]])")
+    known = set(GnssOutageZone.__dataclass_fields__)
+    for i, zone in enumerate(raw_outages):
+        label = f"{where}: gnss_outage[{i}]"
+        if not isinstance(zone, dict):
+            raise ValueError(f"{label} must be a table")
+        unknown = set(zone) - known
+        missing = known - set(zone) - {"label"}
+        if unknown or missing:
+            raise ValueError(f"{label}: unknown key(s) {sorted(unknown)}, missing {sorted(missing)}; "
+                             f"expected {sorted(known)}")
+        outages.append(GnssOutageZone(
+            **{k: _number(zone[k], f"{label}.{k}") for k in ("x0_m", "y0_m", "x1_m", "y1_m")},
+            half_width_m=_number(zone["half_width_m"], f"{label}.half_width_m", minimum=0.0, strict=True),
+            label=str(zone.get("label", ""))))
+
     route = Route(name=data["name"], description=data["description"], excites=data.get("excites", ""),
                   closed=closed, laps=laps, waypoints=tuple(waypoints), driving=driving, site=site,
-                  terrain=terrain, source=source)
+                  terrain=terrain, gnss_outages=tuple(outages), source=source)
     route.path  # noqa: B018 -- build now so that geometry errors surface at load time
     return route
 

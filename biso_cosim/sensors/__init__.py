@@ -8,7 +8,7 @@ are m_x = a_y, m_y = a_x, m_z = −a_z.
 Modules: `registers` (configuration registers and chip tables), `profile` (error
 parameters and per-seed draws), `dlpf` (filters matching the DLPF tables), `mpu9250`
 (the model), `samples` (outputs, raw registers, raw -> SI), `magnetic` (WMM and
-disturbances). Parameters and chip facts are data: ``data/*.toml``, ``profiles/*.toml``.
+disturbances), `gnss` (the virtual GNSS receiver). Parameters and chip facts are data: ``data/*.toml``, ``profiles/*.toml``.
 
 Quick use::
 
@@ -17,6 +17,7 @@ Quick use::
     s.t_s, s.gyro_b, s.accel_b, s.mag_b, s.flags
 """
 
+from biso_cosim.sensors.gnss import GnssFixes, GnssProfile, GnssReceiver, TimeOutage, ZoneOutage
 from biso_cosim.sensors.magnetic import SARATOV, Dipole, EarthField, MagneticEnvironment, SteelBeam
 from biso_cosim.sensors.mpu9250 import MPU9250
 from biso_cosim.sensors.profile import DrawnErrors, Profile, parameter_schema, profile_names
