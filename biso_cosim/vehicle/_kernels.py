@@ -1,4 +1,4 @@
-"""Numba kernels of the vehicle layer: interpolation of the truth."""
+"""Numba kernels of the vehicle layer: packing and interpolation of the truth."""
 
 from __future__ import annotations
 
@@ -44,3 +44,13 @@ def _interpolate_rows(rows, t0_s, rate_hz, t_s, quat_col, out):
         norm = math.sqrt(norm)
         for c in range(quat_col, quat_col + 4):
             out[k, c] /= norm
+
+
+@jit
+def _pack_rows(buf, gather, first_step, rate_hz, out):
+    """Truth rows from MuJoCo sensor rows: column 0 the time of each row's step, then the
+    sensordata columns ``gather`` (see ``VehicleSim._gather``)."""
+    for k in range(buf.shape[0]):
+        out[k, 0] = (first_step + k) / rate_hz
+        for c in range(gather.shape[0]):
+            out[k, c + 1] = buf[k, gather[c]]

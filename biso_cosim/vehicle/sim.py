@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 
 from biso_cosim.frames import _q_from_euler
-from biso_cosim.vehicle._kernels import _interpolate_rows
+from biso_cosim.vehicle._kernels import _interpolate_rows, _pack_rows
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -111,14 +111,17 @@ class VehicleSim:
             max_brake_torque_nm=params["max_brake_torque_per_wheel_nm"],
             max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params)
         self._buffer = np.empty((self.steps_per_control, self.model.nsensordata))
-        self._step_offsets = np.arange(max(self.steps_per_control, 1), dtype=np.float64)
+        # a view of MuJoCo's sensor buffer, taken once: reading data.sensordata builds a new
+        # array object each time (about 1 µs), and the buffer never moves
+        self._sensordata = self.data.sensordata
         ix = self.index
         # sensordata columns of Truth's columns 1..21, in order
         self._settled: tuple[np.ndarray, np.ndarray] | None = None
         self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
                              np.arange(ix.quat.start, ix.quat.stop), np.arange(ix.pos.start, ix.pos.stop),
                              np.arange(ix.vel_w.start, ix.vel_w.stop), [ix.rear_axle_vel_b.start],
-                             np.arange(ix.wheel_rates.start, ix.wheel_rates.stop), [ix.steering_angle.start]]
+                             np.arange(ix.wheel_rates.start, ix.wheel_rates.stop),
+                             [ix.steering_angle.start]].astype(np.int64)
         self.reset()
 
     # ------------------------------------------------------------------ placement
@@ -180,14 +183,13 @@ class VehicleSim:
 
     def step(self, n: int | None = None) -> Truth:
         """Advance ``n`` physics steps (default: one control period); truth of those steps."""
-        m, d = self.model, self.data
+        m, d, sensordata = self.model, self.data, self._sensordata
         n = self.steps_per_control if n is None else n
         buf = self._buffer if n == self._buffer.shape[0] else np.empty((n, m.nsensordata))
-        if n > self._step_offsets.shape[0]:
-            self._step_offsets = np.arange(n, dtype=np.float64)
+        step = mujoco.mj_step
         for k in range(n):
-            mujoco.mj_step(m, d)
-            buf[k] = d.sensordata
+            step(m, d)
+            buf[k] = sensordata
         first = self.steps_done
         self.steps_done += n
         return self._truth(buf, first)
@@ -197,8 +199,6 @@ class VehicleSim:
         return self._truth(self.data.sensordata[None, :].copy(), max(self.steps_done - 1, 0))
 
     def _truth(self, buf: np.ndarray, first_step: int) -> Truth:
-        n = buf.shape[0]
-        packed = np.empty((n, Truth.WIDTH))
-        packed[:, 0] = (first_step + self._step_offsets[:n]) / self.physics_rate_hz
-        packed[:, 1:] = buf[:, self._gather]
+        packed = np.empty((buf.shape[0], Truth.WIDTH))
+        _pack_rows(buf, self._gather, first_step, self.physics_rate_hz, packed)
         return Truth(packed)
