@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from biso_cosim._numba import jit
+from biso_cosim.routes._kernels import _locate
 
 
 @jit
@@ -54,3 +57,123 @@ def _pack_rows(buf, gather, first_step, rate_hz, out):
         out[k, 0] = (first_step + k) / rate_hz
         for c in range(gather.shape[0]):
             out[k, c + 1] = buf[k, gather[c]]
+
+
+# ---- the scripted driver (biso_cosim.vehicle.driver documents the method) -------------
+# state[...]
+S_INDEX, S_S, S_CROSS, S_VCMD, S_INTEGRAL, S_STEER, S_NEXT, S_FLOOR, S_DWELL, S_HOLD, S_TIME, S_FINISHED = range(12)
+STATE_SIZE = 12
+# params[...]
+(P_LMIN, P_TLA, P_LMAX, P_STEER_RATE, P_KP, P_KI, P_STOP_DIST, P_STOP_SPEED, P_CREEP, P_HOLD_RAMP,
+ P_WHEELBASE, P_MAX_STEER, P_MASS, P_RADIUS, P_MAX_DRIVE, P_BRAKE_KV, P_MAX_BRAKE, P_DT, P_DECEL, P_ACCEL,
+ P_WAIT, P_LENGTH) = range(22)
+PARAMS_SIZE = 22
+_BACK, _AHEAD = 8, 80  # search window of the path locator, samples
+
+
+@jit
+def _index_at(ps, s):
+    i = np.searchsorted(ps, s, side="right") - 1
+    return min(max(i, 0), ps.shape[0] - 1)
+
+
+@jit
+def _track(px, py, ps, state, x, y):
+    """Progress along the path and cross-track error, never before the last passed stop."""
+    n = px.shape[0]
+    hint = int(state[S_INDEX])
+    lo = max(hint - _BACK, int(state[S_FLOOR]), 0)
+    hi = min(hint + _AHEAD, n - 1)
+    i, s, cross = _locate(px, py, ps, x, y, lo, hi)
+    state[S_INDEX] = i
+    state[S_S] = s
+    state[S_CROSS] = cross
+
+
+@jit
+def _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp,
+                    p, state, x, y, yaw, speed, wheel_speed, out):
+    """One control period of the scripted driver: out = (steer_rad, drive, brake)."""
+    dt = p[P_DT]
+    _track(px, py, ps, state, x, y)
+    state[S_TIME] += dt
+    if state[S_TIME] <= p[P_WAIT]:
+        out[0], out[1], out[2] = 0.0, 0.0, 1.0
+        return
+    index = int(state[S_INDEX])
+    s_now = state[S_S]
+    d = float(direction[index])
+    k = int(state[S_NEXT])
+
+    # steering: pure pursuit from the direction of travel, goal continued straight beyond a
+    # cusp or the end
+    lookahead = min(p[P_LMIN] + p[P_TLA] * abs(speed), p[P_LMAX])
+    s_goal = s_now + lookahead
+    limit = stop_s[k] if (stop_cusp[k] or math.isinf(stop_dwell[k])) else p[P_LENGTH]
+    if s_goal <= limit:
+        g = _index_at(ps, s_goal)
+        gx, gy = px[g], py[g]
+    else:
+        g = _index_at(ps, limit)
+        heading = pheading[max(g - 1, 0)]
+        extra = s_goal - limit
+        gx, gy = px[g] + extra * math.cos(heading), py[g] + extra * math.sin(heading)
+    dx, dy = gx - x, gy - y
+    c, s = math.cos(yaw) * d, math.sin(yaw) * d
+    ahead, left = c * dx + s * dy, -s * dx + c * dy
+    distance = max(math.hypot(ahead, left), 1e-3)
+    alpha = math.atan2(left, ahead)
+    target_steer = d * math.atan(2.0 * p[P_WHEELBASE] * math.sin(alpha) / distance)
+    target_steer = min(max(target_steer, -p[P_MAX_STEER]), p[P_MAX_STEER])
+    step = p[P_STEER_RATE] * dt
+    state[S_STEER] += min(max(target_steer - state[S_STEER], -step), step)
+
+    # speed: free-flow target capped before the next stop, signed by the direction
+    to_stop = stop_s[k] - s_now
+    if to_stop < p[P_STOP_DIST] and abs(speed) < p[P_STOP_SPEED]:
+        state[S_DWELL] += dt
+        state[S_VCMD] = 0.0
+        state[S_INTEGRAL] = 0.0
+        if state[S_DWELL] >= stop_dwell[k]:
+            state[S_NEXT] = k + 1
+            state[S_FLOOR] = stop_index[k]
+            state[S_DWELL] = 0.0
+            state[S_HOLD] = 0.0
+            index = max(index, int(stop_index[k]))  # the first command after a cusp is for the new direction
+            state[S_INDEX] = index
+            d = float(direction[index])
+        else:
+            state[S_FINISHED] = 1.0 if math.isinf(stop_dwell[k]) else 0.0
+            state[S_HOLD] = min(state[S_HOLD] + dt / p[P_HOLD_RAMP], 1.0)
+            out[0], out[1], out[2] = state[S_STEER], 0.0, state[S_HOLD]
+            return
+    room = max(to_stop, 0.0)
+    target = d * min(v_free[index], math.sqrt(2.0 * p[P_DECEL] * room), room / p[P_CREEP])
+    previous = state[S_VCMD]
+    if d > 0:  # the rate limits apply to the magnitude: speeding up at accel, slowing at decel
+        down, up = p[P_DECEL], p[P_ACCEL]
+    else:
+        down, up = p[P_ACCEL], p[P_DECEL]
+    state[S_VCMD] += min(max(target - previous, -down * dt), up * dt)
+    feedforward = (state[S_VCMD] - previous) / dt
+    error = state[S_VCMD] - speed
+    accel_cmd = feedforward + p[P_KP] * error + p[P_KI] * state[S_INTEGRAL]
+
+    # actuators: drive when pushing along the direction of travel, else brake all four wheels
+    torque = p[P_MASS] * accel_cmd * p[P_RADIUS]
+    if torque * d >= 0.0:
+        drive = torque / p[P_MAX_DRIVE]
+        brake = 0.0
+        saturated = abs(drive) > 1.0
+        drive = min(max(drive, -1.0), 1.0)
+    else:
+        drive = 0.0
+        per_wheel = abs(torque) / 4.0
+        # the brake is a damper (torque = kv·u·ω): u for the wanted torque at this speed
+        brake = per_wheel / (p[P_BRAKE_KV] * max(abs(wheel_speed), 0.5))
+        saturated = brake > 1.0 or per_wheel > p[P_MAX_BRAKE]
+        brake = min(brake, 1.0)
+    state[S_HOLD] = brake
+    if not saturated:  # no integration while the actuator saturates (anti-windup)
+        state[S_INTEGRAL] += error * dt
+    out[0], out[1], out[2] = state[S_STEER], drive, brake

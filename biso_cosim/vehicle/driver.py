@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from biso_cosim.routes import Route
+from biso_cosim.vehicle import _kernels as K
 
 __all__ = ["DriverParams", "DriverCommand", "DriverState", "RouteDriver"]
 
@@ -75,26 +76,42 @@ class DriverCommand:
     """Brake command of each wheel's damper actuator, [0, 1]."""
 
 
-@dataclass
 class DriverState:
-    """Everything the driver remembers between calls (copyable for checkpoints)."""
+    """Everything the driver remembers between calls, in one array (copyable, picklable):
+    ``index``, ``s_m`` (progress along the path), ``cross_track_m`` (positive left of the
+    path), ``speed_cmd_mps``, ``speed_integral_m``, ``steer_rad``, ``next_stop``,
+    ``floor_index`` (progress never goes back before it), ``dwell_s``, ``hold`` (brake
+    command), ``time_s``, ``finished``."""
 
-    index: int = 0
-    s_m: float = 0.0
-    cross_track_m: float = 0.0
-    speed_cmd_mps: float = 0.0
-    speed_integral_m: float = 0.0
-    steer_rad: float = 0.0
-    next_stop: int = 0
-    floor_index: int = 0
-    dwell_s: float = 0.0
-    hold: float = 0.0
-    time_s: float = 0.0
-    finished: bool = False
+    __slots__ = ("array",)
+
+    def __init__(self, array: np.ndarray | None = None):
+        self.array = np.zeros(K.STATE_SIZE) if array is None else array
+
+    def __repr__(self) -> str:
+        return "DriverState(" + ", ".join(f"{name}={getattr(self, name)!r}" for name in _STATE_FIELDS) + ")"
+
+
+def _state_field(slot: int, kind: type) -> property:
+    return property(lambda self: kind(self.array[slot]))
+
+
+_STATE_FIELDS = {"index": (K.S_INDEX, int), "s_m": (K.S_S, float), "cross_track_m": (K.S_CROSS, float),
+                 "speed_cmd_mps": (K.S_VCMD, float), "speed_integral_m": (K.S_INTEGRAL, float),
+                 "steer_rad": (K.S_STEER, float), "next_stop": (K.S_NEXT, int), "floor_index": (K.S_FLOOR, int),
+                 "dwell_s": (K.S_DWELL, float), "hold": (K.S_HOLD, float), "time_s": (K.S_TIME, float),
+                 "finished": (K.S_FINISHED, bool)}
+for _name, (_slot, _kind) in _STATE_FIELDS.items():
+    setattr(DriverState, _name, _state_field(_slot, _kind))
 
 
 class RouteDriver:
-    """Drives a car along ``route``; ``command()`` once per control period of ``dt_s``."""
+    """Drives a car along ``route``; ``command()`` once per control period of ``dt_s``.
+
+    The work of a period is one numba kernel (``biso_cosim.vehicle._kernels._driver_command``);
+    ``tests/_driver_reference.py`` is the same method written plainly, and the tests compare
+    them command by command.
+    """
 
     def __init__(self, route: Route, *, wheelbase_m: float, wheel_radius_m: float, mass_kg: float,
                  max_drive_torque_nm: float, brake_kv: float, max_brake_torque_nm: float,
@@ -113,8 +130,23 @@ class RouteDriver:
         self.max_brake_torque_nm = max_brake_torque_nm
         self.max_steer_rad = max_steer_rad
         self.dt_s = dt_s
-        self._v_free = route.speed_free_mps
-        self._stops = route.stops
+        p, d = self.params, route.driving
+        c = np.zeros(K.PARAMS_SIZE)
+        c[K.P_LMIN], c[K.P_TLA], c[K.P_LMAX] = p.lookahead_min_m, p.lookahead_time_s, p.lookahead_max_m
+        c[K.P_STEER_RATE], c[K.P_KP], c[K.P_KI] = p.steer_rate_rad_s, p.speed_kp_per_s, p.speed_ki_per_s2
+        c[K.P_STOP_DIST], c[K.P_STOP_SPEED] = p.stop_distance_m, p.stop_speed_mps
+        c[K.P_CREEP], c[K.P_HOLD_RAMP] = p.stop_creep_s, p.hold_ramp_s
+        c[K.P_WHEELBASE], c[K.P_MAX_STEER], c[K.P_MASS], c[K.P_RADIUS] = wheelbase_m, max_steer_rad, mass_kg, wheel_radius_m
+        c[K.P_MAX_DRIVE], c[K.P_BRAKE_KV], c[K.P_MAX_BRAKE] = max_drive_torque_nm, brake_kv, max_brake_torque_nm
+        c[K.P_DT], c[K.P_DECEL], c[K.P_ACCEL], c[K.P_WAIT] = dt_s, d.decel_mps2, d.accel_mps2, d.start_wait_s
+        c[K.P_LENGTH] = self.path.length_m
+        self._params = c
+        path, stops = self.path, route.stops
+        self._arrays = (path.x_m, path.y_m, path.s_m, path.heading_rad, route.speed_free_mps,
+                        route.direction.astype(np.int64),
+                        np.array([st.s_m for st in stops]), np.array([st.index for st in stops], dtype=np.int64),
+                        np.array([st.dwell_s for st in stops]), np.array([st.cusp for st in stops]))
+        self._out = np.zeros(3)
         self.state = DriverState()
 
     def reset(self) -> None:
@@ -126,105 +158,18 @@ class RouteDriver:
         return self.state.finished
 
     def track(self, rear_axle_xy) -> None:
-        """Update progress along the path and the cross-track error from the rear-axle position.
-
-        Progress never goes back past a stop already left behind: where a route reverses along
-        its own track, the nearest point could otherwise lie on the leg before the cusp.
-        """
-        st = self.state
-        i, s, cross = self.path.locate(float(rear_axle_xy[0]), float(rear_axle_xy[1]), st.index,
-                                       floor=st.floor_index)
-        st.index, st.s_m, st.cross_track_m = i, s, cross
-
-    def _goal(self, s_goal: float) -> tuple[float, float]:
-        """The path point at arc length ``s_goal``, continued straight beyond the next cusp or the
-        end, so that the look-ahead never folds back at a change of direction."""
-        path = self.path
-        stop = self._stops[self.state.next_stop]
-        limit = stop.s_m if (stop.cusp or math.isinf(stop.dwell_s)) else path.length_m
-        if s_goal <= limit:
-            i = path.index_at(s_goal)
-            return float(path.x_m[i]), float(path.y_m[i])
-        i = path.index_at(limit)
-        heading = float(path.heading_rad[max(i - 1, 0)])
-        extra = s_goal - limit
-        return float(path.x_m[i]) + extra * math.cos(heading), float(path.y_m[i]) + extra * math.sin(heading)
+        """Update progress along the path and the cross-track error from the rear-axle position
+        (without driving: when an agent drives). Progress never goes back past a stop already
+        left behind: where a route reverses along its own track, the nearest point could
+        otherwise lie on the leg before the cusp."""
+        a = self._arrays
+        K._track(a[0], a[1], a[2], self.state.array, float(rear_axle_xy[0]), float(rear_axle_xy[1]))
 
     def command(self, rear_axle_xy, yaw_rad: float, speed_mps: float, wheel_speed_rad_s: float) -> DriverCommand:
         """The command for the next period from the rear-axle position (x, y in ENU, m), the
         yaw (rad, CCW from East), the forward speed (m/s, negative when reversing) and the mean
         wheel spin rate (rad/s)."""
-        st, p = self.state, self.params
-        dt = self.dt_s
-        x, y = float(rear_axle_xy[0]), float(rear_axle_xy[1])
-        self.track(rear_axle_xy)
-        st.time_s += dt
-        if st.time_s <= self.route.driving.start_wait_s:
-            return DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)
-        direction = float(self.route.direction[st.index])
-
-        # --- steering: pure pursuit to the goal point L_d ahead along the path, measured from the
-        # direction of travel (the nose, or the tail when reversing: then the steer flips)
-        lookahead = min(p.lookahead_min_m + p.lookahead_time_s * abs(speed_mps), p.lookahead_max_m)
-        gx, gy = self._goal(st.s_m + lookahead)
-        dx, dy = gx - x, gy - y
-        c, s = math.cos(yaw_rad) * direction, math.sin(yaw_rad) * direction
-        ahead, left = c * dx + s * dy, -s * dx + c * dy
-        distance = max(math.hypot(ahead, left), 1e-3)
-        alpha = math.atan2(left, ahead)
-        steer_target = direction * math.atan(2.0 * self.wheelbase_m * math.sin(alpha) / distance)
-        steer_target = min(max(steer_target, -self.max_steer_rad), self.max_steer_rad)
-        step = p.steer_rate_rad_s * dt
-        st.steer_rad += min(max(steer_target - st.steer_rad, -step), step)
-
-        # --- speed: free-flow target, capped before the next stop; signed by the direction
-        stop = self._stops[st.next_stop]
-        to_stop = stop.s_m - st.s_m
-        decel = self.route.driving.decel_mps2
-        accel = self.route.driving.accel_mps2
-        reached = to_stop < p.stop_distance_m and abs(speed_mps) < p.stop_speed_mps
-        if reached:
-            st.dwell_s += dt
-            st.speed_cmd_mps = 0.0
-            st.speed_integral_m = 0.0
-            if st.dwell_s >= stop.dwell_s:
-                st.next_stop += 1
-                st.floor_index = stop.index
-                st.dwell_s = 0.0
-                st.hold = 0.0
-                # the first command after a cusp is for the new direction
-                st.index = max(st.index, stop.index)
-                direction = float(self.route.direction[st.index])
-            else:
-                st.finished = math.isinf(stop.dwell_s)
-                st.hold = min(st.hold + dt / p.hold_ramp_s, 1.0)
-                return DriverCommand(steer_rad=st.steer_rad, drive=0.0, brake=st.hold)
-        room = max(to_stop, 0.0)
-        target = direction * min(float(self._v_free[st.index]), math.sqrt(2.0 * decel * room), room / p.stop_creep_s)
-        previous = st.speed_cmd_mps
-        # the rate limits apply to the magnitude: speeding up at accel, slowing at decel
-        down, up = (decel, accel) if direction > 0 else (accel, decel)
-        st.speed_cmd_mps += min(max(target - previous, -down * dt), up * dt)
-        feedforward = (st.speed_cmd_mps - previous) / dt
-        error = st.speed_cmd_mps - speed_mps
-        accel_cmd = feedforward + p.speed_kp_per_s * error + p.speed_ki_per_s2 * st.speed_integral_m
-
-        # --- actuators: drive torque at the rear axle when pushing along the direction of
-        # travel, else brake torque at all four wheels
-        torque = self.mass_kg * accel_cmd * self.wheel_radius_m
-        if torque * direction >= 0.0:
-            drive = torque / self.max_drive_torque_nm
-            brake = 0.0
-            saturated = abs(drive) > 1.0
-            drive = min(max(drive, -1.0), 1.0)
-        else:
-            drive = 0.0
-            per_wheel = abs(torque) / 4.0
-            # the brake is a damper (torque = kv·u·ω): choose u for the wanted torque at this speed
-            brake = per_wheel / (self.brake_kv * max(abs(wheel_speed_rad_s), 0.5))
-            saturated = brake > 1.0 or per_wheel > self.max_brake_torque_nm
-            brake = min(brake, 1.0)
-        st.hold = brake
-        if not saturated:  # no integration while the actuator saturates (anti-windup)
-            st.speed_integral_m += error * dt
-        return DriverCommand(steer_rad=st.steer_rad, drive=drive, brake=brake)
+        out = self._out
+        K._driver_command(*self._arrays, self._params, self.state.array, float(rear_axle_xy[0]),
+                          float(rear_axle_xy[1]), float(yaw_rad), float(speed_mps), float(wheel_speed_rad_s), out)
+        return DriverCommand(steer_rad=float(out[0]), drive=float(out[1]), brake=float(out[2]))
