@@ -13,8 +13,10 @@ time stamps, so every estimate is compared with the attitude at the instant it r
 from __future__ import annotations
 
 import copy
+import itertools
 import math
 import time
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping
 
@@ -47,9 +49,21 @@ NAVIGATOR_PRESETS = {
 """Dead-reckoning navigators by family (Litmanovich 2002): coning, sculling and position
 algorithms; the update interval is the sensor's output interval."""
 
-# Time the car stands still at the end of a completed route before the end window of the
-# start-to-end difference is taken, and the length of both windows.
+# Length of the windows over which the start and end angles of a closed route are averaged
+# (the car stands still in both: before driving off, and after the driver has stopped it at
+# the finish; the run lasts at least this long after that).
 _WINDOW_S = 1.0
+
+# Every log (a run from reset, or a history begun by set_state) gets its own number, so that
+# set_state cuts back only the log that a state belongs to.
+_LOG_GENERATIONS = itertools.count(1)
+
+
+def _profile_content(profile: Any) -> str:
+    """A sensor profile file's content (a profile given by name or object: its repr)."""
+    if isinstance(profile, (str, Path)) and str(profile).endswith(".toml") and Path(profile).is_file():
+        return Path(profile).read_text()
+    return repr(profile)
 
 
 @dataclass(frozen=True)
@@ -195,6 +209,12 @@ class CoSimulation:
             self.estimators[spec.key] = est
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
         self.gnss_receiver = self._make_receiver(gnss, gnss_rate_hz, physics_rate_hz)
+        # what a state must share with this co-simulation to be restored into it
+        self._identity = repr((self.route, self.seed, sensor_profile, _profile_content(sensor_profile),
+                               sorted(self.registers.items()), repr(mounting), gyro_calibration_s, repr(gnss),
+                               gnss_rate_hz, physics_rate_hz, control_rate_hz,
+                               [(s.key, s.name, sorted((k, repr(v)) for k, v in s.params.items())) for s in self.specs],
+                               sorted(navigators) if not isinstance(navigators, str) else navigators))
         self._setup_navigators(navigators)
         self._calibrate_gyro()
         self._reset_navigators()
@@ -321,6 +341,7 @@ class CoSimulation:
         physics = np.empty(mujoco.mj_stateSize(v.model, spec))
         mujoco.mj_getState(v.model, v.data, physics, spec)
         return CoSimState(
+            identity=self._identity, log_origin_chunk=self._log_origin_chunk, log_generation=self._log_generation,
             physics=physics, sensordata=v.data.sensordata.copy(), steps_done=v.steps_done,
             driver=copy.deepcopy(v.driver.state),
             imu=copy.deepcopy(self.imu.get_state()),
@@ -340,12 +361,11 @@ class CoSimulation:
         """
         if not isinstance(state, CoSimState):
             raise TypeError(f"set_state expects a CoSimState from get_state(), got {type(state).__name__}")
-        if set(state.estimators) != set(self.estimators) or set(state.navigators) != set(self.navigators):
-            raise ValueError("set_state: the state is from a co-simulation with other estimators or navigators")
+        if state.identity != self._identity:
+            raise ValueError("set_state: the state is from a co-simulation with another set-up (route, seed, "
+                             "sensor, estimators, navigators, GNSS or rates); nothing changed")
         v = self.vehicle
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        if state.physics.shape != (mujoco.mj_stateSize(v.model, spec),):
-            raise ValueError("set_state: the physics state does not fit this model (another route?)")
         mujoco.mj_setState(v.model, v.data, state.physics, spec)
         # the driver reads the sensor data of the last step, which belongs to that step's start
         # (DESIGN.md §3): restore it as it was rather than recompute it for the current state
@@ -362,11 +382,14 @@ class CoSimulation:
         self._chunks_done = state.chunks_done
         self._last_truth_row = None if state.last_truth_row is None else Truth(state.last_truth_row.copy())
         lengths = self._log_lengths()
-        if all(lengths[k] >= n for k, n in state.log_lengths.items()):
+        same_log = (state.log_generation == self._log_generation and state.log_origin_chunk == self._log_origin_chunk
+                    and all(lengths[k] >= n for k, n in state.log_lengths.items()))
+        if same_log:  # back in time within this log: cut it back
             self._trim_logs(state.log_lengths)
-        else:
+        else:  # another history: a fresh log from the state's time
             self._trim_logs({k: 0 for k in lengths})
             self._log_origin_chunk = state.chunks_done
+            self._log_generation = next(_LOG_GENERATIONS)
 
     def _log_lengths(self) -> dict[str, int]:
         out = {f"log.{k}": len(v) for k, v in self._log.items()}
@@ -382,6 +405,7 @@ class CoSimulation:
 
     def _reset_logs(self) -> None:
         self._log_origin_chunk = 0
+        self._log_generation = next(_LOG_GENERATIONS)
         self._chunks_done = 0
         self._last_truth_row: Truth | None = None
         self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": [], "gnss": []}
@@ -465,15 +489,19 @@ class CoSimulation:
             bar = tqdm(total=round(self.duration_s), unit="sim s", desc=self.route.name, leave=False)
         per_second = max(int(round(self.vehicle.control_rate_hz)), 1)
         block: list[Truth] = []
-        while not self.done:
-            block.append(self._drive())
-            if len(block) == block_periods or self.done:
+        try:
+            while not self.done:
+                block.append(self._drive())
+                if len(block) == block_periods or self.done:
+                    pending, block = block, []
+                    self._sense(Truth.concatenate(pending))
+                if bar is not None and self._chunks_done % per_second == 0:
+                    bar.update(1)
+        finally:
+            if block:  # interrupted mid-block: the sensor and estimators catch up with the physics
                 self._sense(Truth.concatenate(block))
-                block = []
-            if bar is not None and self._chunks_done % per_second == 0:
-                bar.update(1)
-        if bar is not None:
-            bar.close()
+            if bar is not None:
+                bar.close()
         return self.result(wall_time_s=time.perf_counter() - start)
 
     def result(self, wall_time_s: float = float("nan")) -> "RunResult":
@@ -533,6 +561,9 @@ class CoSimulation:
         and this chunk's last row."""
         rows = chunk if self._last_truth_row is None else Truth.concatenate([self._last_truth_row, chunk])
         self._last_truth_row = chunk[-1:]
+        if t_s.shape[0] and (t_s[0] < rows.t_s[0] - 1e-9 or t_s[-1] > rows.t_s[-1] + 1e-9):
+            raise RuntimeError(f"sensor time stamps {t_s[0]:.6f}…{t_s[-1]:.6f} s lie outside the physics rows "
+                               f"{rows.t_s[0]:.6f}…{rows.t_s[-1]:.6f} s: the sensor and the physics are out of step")
         return rows.at(t_s, self.vehicle.physics_rate_hz)
 
 
@@ -540,6 +571,9 @@ class CoSimulation:
 class CoSimState:
     """The whole state of a :class:`CoSimulation` (see ``get_state``); picklable."""
 
+    identity: str  # the set-up it belongs to
+    log_origin_chunk: int
+    log_generation: int
     physics: np.ndarray  # mj_getState(mjSTATE_INTEGRATION)
     sensordata: np.ndarray
     steps_done: int

@@ -50,6 +50,7 @@ def test_in_loop_streaming_equals_batch_estimation(figure8_run):
 
 def test_truth_is_taken_at_the_sample_times(figure8_run):
     run = figure8_run
+    np.testing.assert_array_equal(run.truth.t_s, run.imu.t_s)
     dt = 1.0 / run.sensor["output_rate_hz"]
     np.testing.assert_allclose(np.diff(run.t_s), dt, atol=1e-9)
     assert run.t_s[0] == 0.0
@@ -199,8 +200,57 @@ def test_whole_state_get_set_goes_back_in_time_exactly():
     third = other.result()
     assert third.log_start_s == pytest.approx(3.0)
     np.testing.assert_array_equal(third.estimates["biso"][0], first.estimates["biso"][0][-third.t_s.shape[0]:])
-    with pytest.raises(ValueError, match="other estimators"):
-        CoSimulation("figure8", duration_s=1.0, estimators=["poisson"]).set_state(state)
+    for other in (CoSimulation("figure8", duration_s=12.0, seed=2, estimators=["poisson"]),
+                  CoSimulation("slalom", duration_s=12.0, seed=2, estimators=["biso", "biso_plus"],
+                               navigators=["invariant"]),
+                  CoSimulation("figure8", duration_s=12.0, seed=3, estimators=["biso", "biso_plus"],
+                               navigators=["invariant"])):
+        with pytest.raises(ValueError, match="another set-up"):
+            other.set_state(state)
+
+
+def test_set_state_never_mixes_histories_in_the_log():
+    sim = CoSimulation("figure8", duration_s=12.0, seed=2, estimators=["poisson"])
+    for _ in range(50):
+        sim.step()
+    s50 = sim.get_state()
+    for _ in range(100):
+        sim.step()
+    s150 = sim.get_state()
+    fresh = CoSimulation("figure8", duration_s=12.0, seed=2, estimators=["poisson"])
+    fresh.set_state(s150)  # another instance: a new log from 3 s
+    for _ in range(100):
+        fresh.step()
+    fresh.set_state(s50)  # earlier than that log: again a new log, from 1 s
+    for _ in range(10):
+        fresh.step()
+    run = fresh.result()
+    assert run.log_start_s == pytest.approx(1.0)
+    assert np.all(np.diff(run.t_s) > 0) and run.t_s[0] == pytest.approx(1.0)  # the sample latched at 1 s
+
+
+def test_an_interrupted_run_continues_in_step():
+    class Stop(Exception):
+        pass
+
+    sim = CoSimulation("figure8", duration_s=6.0, seed=0, estimators=["poisson"])
+    original = sim._drive
+    calls = {"n": 0}
+
+    def drive_then_interrupt(command=None):
+        calls["n"] += 1
+        if calls["n"] == 57:  # in the middle of the sixth block of ten periods
+            raise Stop
+        return original(command)
+
+    sim._drive = drive_then_interrupt
+    with pytest.raises(Stop):
+        sim.run()
+    sim._drive = original
+    run = sim.run()
+    np.testing.assert_allclose(run.truth.t_s, run.imu.t_s, atol=1e-12)
+    reference = CoSimulation("figure8", duration_s=6.0, seed=0, estimators=["poisson"]).run()
+    np.testing.assert_array_equal(run.imu.gyro_b, reference.imu.gyro_b)
 
 
 def test_gnss_receiver_in_the_loop_loses_its_fix_in_the_underpass():
