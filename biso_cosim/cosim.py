@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from biso_cosim.estimators import Estimate, make_estimator
-from biso_cosim.frames import quat_angle_between
+from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
@@ -37,8 +37,9 @@ __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_rout
 DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
 """A typical MPU-9250 after the usual start-up calibration (see docs/sensors.md)."""
 
-DEFAULT_ESTIMATORS = ("biso", "poisson")
-"""Estimators of a run unless told otherwise: BISO and the uncorrected integration it improves on."""
+DEFAULT_ESTIMATORS = ("biso", "biso_plus", "poisson")
+"""Estimators of a run unless told otherwise: the paper's BISO, its vehicle variant, and the
+uncorrected integration they improve on."""
 
 NAVIGATOR_PRESETS = {
     "one_sample": {"coning": "one_sample", "sculling": "traditional1", "position": "rectangle"},
@@ -57,6 +58,16 @@ _WINDOW_S = 1.0
 # Every log (a run from reset, or a history begun by set_state) gets its own number, so that
 # set_state cuts back only the log that a state belongs to.
 _LOG_GENERATIONS = itertools.count(1)
+
+
+def _check_command(command: Any, max_steer_rad: float) -> None:
+    """An agent's command: a DriverCommand of finite values within the actuators' ranges."""
+    if not isinstance(command, DriverCommand):
+        raise TypeError(f"command must be a DriverCommand(steer_rad, drive, brake), got {type(command).__name__}")
+    for name, low, high in (("steer_rad", -max_steer_rad, max_steer_rad), ("drive", -1.0, 1.0), ("brake", 0.0, 1.0)):
+        value = getattr(command, name)
+        if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value) and low <= value <= high):
+            raise ValueError(f"command.{name} must be a finite number in [{low:g}, {high:g}], got {value!r}")
 
 
 def _profile_content(profile: Any) -> str:
@@ -348,7 +359,7 @@ class CoSimulation:
             gnss=None if self.gnss_receiver is None else copy.deepcopy(self.gnss_receiver.get_state()),
             estimators={k: copy.deepcopy(e.get_state()) for k, e in self.estimators.items()},
             navigators={k: copy.deepcopy(n.get_state()) for k, n in self.navigators.items()},
-            chunks_done=self._chunks_done,
+            chunks_done=self._chunks_done, finished_chunk=self._finished_chunk,
             last_truth_row=None if self._last_truth_row is None else self._last_truth_row.packed.copy(),
             log_lengths=self._log_lengths())
 
@@ -380,6 +391,7 @@ class CoSimulation:
         for key, nav in self.navigators.items():
             nav.set_state(copy.deepcopy(state.navigators[key]))
         self._chunks_done = state.chunks_done
+        self._finished_chunk = state.finished_chunk
         self._last_truth_row = None if state.last_truth_row is None else Truth(state.last_truth_row.copy())
         lengths = self._log_lengths()
         same_log = (state.log_generation == self._log_generation and state.log_origin_chunk == self._log_origin_chunk
@@ -408,7 +420,8 @@ class CoSimulation:
         self._log_generation = next(_LOG_GENERATIONS)
         self._chunks_done = 0
         self._last_truth_row: Truth | None = None
-        self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": [], "gnss": []}
+        self._log: dict[str, list] = {"truth": [], "imu": [], "cross_track_m": [], "progress_m": [], "gnss": []}
+        self._finished_chunk: int | None = None
         self._nav_log: dict[str, list] = {k: [] for k in self.navigator_params}
         self._est_log: dict[str, list[Estimate]] = {k: [] for k in self.estimators}
 
@@ -431,11 +444,15 @@ class CoSimulation:
         if command is None:
             vehicle.drive()
         else:
+            _check_command(command, vehicle.parameters["max_steer_rad"])
             vehicle.observe_route()
             vehicle.apply(command)
         truth = vehicle.step()
         self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
+        self._log["progress_m"].append(vehicle.driver.state.s_m)
         self._chunks_done += 1
+        if self._finished_chunk is None and vehicle.driver.finished:
+            self._finished_chunk = self._chunks_done
         return truth
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
@@ -520,6 +537,8 @@ class CoSimulation:
                       for k, outs in self._nav_log.items()}
         return RunResult(
             log_start_s=self._log_origin_chunk / self.vehicle.control_rate_hz,
+            finished_at_s=None if self._finished_chunk is None else self._finished_chunk / self.vehicle.control_rate_hz,
+            progress_m=np.asarray(self._log["progress_m"]),
             route=self.route, truth=truth, imu=imu, estimates=estimates, navigation=navigation, gnss=gnss,
             specs={s.key: s for s in self.specs},
             seed=self.seed, duration_s=self._chunks_done / self.vehicle.control_rate_hz,
@@ -583,6 +602,7 @@ class CoSimState:
     estimators: dict
     navigators: dict
     chunks_done: int
+    finished_chunk: int | None
     last_truth_row: np.ndarray | None
     log_lengths: dict
 
@@ -606,6 +626,8 @@ class RunResult:
     site: dict
     gnss: Any = None
     log_start_s: float = 0.0
+    finished_at_s: float | None = None
+    progress_m: np.ndarray | None = None  # the driver's progress along the route, per control period
 
     @property
     def t_s(self) -> np.ndarray:
@@ -622,6 +644,8 @@ class RunResult:
         route, or None when the route was not driven to its end."""
         if not (self.route.closed and self.completed) or self.log_start_s > 0.0:
             return None
+        if self.finished_at_s is None or self.finished_at_s > self.duration_s - _WINDOW_S:
+            return None  # not yet standing still at the finish for a whole window
         wait = self.route.driving.start_wait_s
         start = (max(wait - _WINDOW_S, 0.0), wait)
         end = (self.duration_s - _WINDOW_S, self.duration_s)
@@ -659,7 +683,8 @@ class RunResult:
             if windows is not None:
                 est = start_end_difference(self.t_s, attitude_angles_deg(q), *windows)
                 entry["start_end_deg"] = est
-                entry["start_end_error_deg"] = {a: est[a] - out["truth_start_end_deg"][a] for a in ANGLES}
+                entry["start_end_error_deg"] = {
+                    a: float(np.degrees(wrap_angle(np.radians(est[a] - out["truth_start_end_deg"][a])))) for a in ANGLES}
             out["estimators"][key] = entry
         if self.navigation:
             out["navigators"] = {key: self.navigation_errors(key) for key in self.navigation}

@@ -52,6 +52,7 @@ def plot_run(result, path: str | Path) -> Path:
     ax_speed.grid(alpha=0.3)
 
     summary = result.summary()
+    errors = {key: result.errors(key) for key in result.estimates}
     for row, angle in enumerate(ANGLES, start=1):
         ax = fig.add_subplot(grid[row, 0])
         ax_err = fig.add_subplot(grid[row, 1], sharex=ax)
@@ -64,7 +65,7 @@ def plot_run(result, path: str | Path) -> Path:
         ax.set_ylabel(_LABELS[angle])
         ax.grid(alpha=0.3)
         for i, key in enumerate(result.estimates):
-            err = result.errors(key)[angle]
+            err = errors[key][angle]
             rms = summary["estimators"][key]["errors"][angle]["rms_deg"]
             ax_err.plot(t, err, color=colors[i % len(colors)], lw=0.8, label=f"{key}: RMS {rms:.2f}°")
         ax_err.set_yscale("symlog", linthresh=1.0)

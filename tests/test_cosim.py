@@ -267,3 +267,43 @@ def test_gnss_receiver_in_the_loop_loses_its_fix_in_the_underpass():
     again = sim.run()
     np.testing.assert_array_equal(again.gnss.pos_w[~under], fixes.pos_w[~under])
     assert CoSimulation("figure8", duration_s=1.0).gnss_receiver is None  # "auto": nobody needs it
+
+
+def test_agent_commands_are_checked_before_the_physics():
+    from biso_cosim.vehicle.driver import DriverCommand
+
+    sim = CoSimulation("figure8", duration_s=2.0, estimators=["poisson"])
+    before = sim.get_state()
+    with pytest.raises(ValueError, match=r"command.steer_rad must be a finite number"):
+        sim.step(DriverCommand(float("nan"), 0.2, 0.0))
+    with pytest.raises(ValueError, match=r"command.brake must be a finite number in \[0, 1\]"):
+        sim.step(DriverCommand(0.0, 0.0, 2.0))
+    with pytest.raises(TypeError, match="DriverCommand"):
+        sim.step((0.0, 0.5, 0.0))
+    np.testing.assert_array_equal(sim.get_state().physics, before.physics)  # nothing moved
+    sim.step(DriverCommand(0.1, 0.3, 0.0))
+
+
+def test_mujoco_sensor_rows_belong_to_the_start_of_their_step():
+    import copy
+
+    import mujoco
+
+    sim = CoSimulation("figure8", duration_s=2.0, estimators=["poisson"])
+    vehicle = sim.vehicle
+    probe = copy.copy(vehicle.data)  # the IMU's position in the state before the step
+    mujoco.mj_kinematics(vehicle.model, probe)
+    before = probe.site_xpos[vehicle.index.imu_site].copy()
+    truth = vehicle.step(1)
+    np.testing.assert_array_equal(truth.pos_w[0], before)
+    assert truth.t_s[0] == 0.0
+
+
+def test_cli_input_errors_and_bugs_are_told_apart(tmp_path, capsys):
+    from biso_cosim.logs import SENSOR_COLUMNS
+
+    rows = [",".join(c for cols in SENSOR_COLUMNS.values() for c in cols)] + ["0,0,0,0,0,9.8,20,0,-40"] * 5
+    (tmp_path / "in.csv").write_text("\n".join(rows) + "\n")
+    assert cli_main(["estimate", str(tmp_path / "in.csv"), "--out", str(tmp_path / "o.csv"), "--fs", "100",
+                     "--param", "bogus=1"]) == 2
+    assert "bogus" in capsys.readouterr().err

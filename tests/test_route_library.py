@@ -145,3 +145,14 @@ def test_bad_track_files_say_where(tmp_path, name, text, message):
     (tmp_path / name).write_text(text)
     with pytest.raises(ValueError, match=message):
         read_track(tmp_path / name)
+
+
+def test_imported_heights_are_not_the_earths_curvature(tmp_path):
+    """A long, level track (constant ellipsoidal height) stays level: ENU "up" would fall."""
+    import pymap3d
+
+    e = np.linspace(0.0, 10_000.0, 400)
+    lat, lon, _ = pymap3d.enu2geodetic(e, np.zeros_like(e), np.zeros_like(e), 51.53, 46.03, 100.0)
+    _write_gpx(tmp_path / "level.gpx", lat, lon, np.full_like(e, 100.0))
+    data = track_to_route_data(read_track(tmp_path / "level.gpx"))
+    assert "terrain" not in data  # no height change, no road feature

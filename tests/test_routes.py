@@ -137,3 +137,25 @@ def test_gnss_outage_zones_in_route_files():
         parse_route(base(gnss_outage=[{"x0_m": 1.0, "y0_m": 0.0, "x1_m": 2.0, "y1_m": 0.0}]))
     with pytest.raises(ValueError, match=r"gnss_outage\[0\].half_width_m must be > 0"):
         parse_route(base(gnss_outage=[{"x0_m": 1.0, "y0_m": 0.0, "x1_m": 2.0, "y1_m": 0.0, "half_width_m": 0}]))
+
+
+def test_more_bad_route_files():
+    data = base()
+    data["waypoint"] = [1, 2]
+    with pytest.raises(ValueError, match=r"waypoint\[0\] must be a table"):
+        parse_route(data)
+    data = base()
+    data["waypoint"][-1]["stop_s"] = 5.0
+    with pytest.raises(ValueError, match=r"waypoint\[2\].stop_s"):
+        parse_route(data)
+    data = base()
+    data["waypoint"][-1]["reverse"] = True
+    with pytest.raises(ValueError, match=r"waypoint\[2\].reverse"):
+        parse_route(data)
+    ring = {"type": "bank", "cx_m": 0, "cy_m": 0, "radius_m": 50, "width_m": 8, "start_deg": 0, "end_deg": 360,
+            "bank_deg": 8}
+    with pytest.raises(ValueError, match="start_deg and end_deg must differ"):
+        parse_route(base(terrain={"feature": [ring]}))
+    huge = {"type": "hill", "x_m": 0, "y_m": 0, "radius_m": 1e7, "height_m": 1}
+    with pytest.raises(ValueError, match="cells"):
+        parse_route(base(terrain={"feature": [huge]})).terrain.patches()

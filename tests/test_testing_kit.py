@@ -36,7 +36,8 @@ def test_user_estimators_run_in_the_loop_and_are_never_cached():
     run_a = drive("figure8", estimator=a, seed=0, duration_s=4.0)
     drive("figure8", estimator=b, seed=0, duration_s=4.0)
     assert a.calls == b.calls == 200  # one call per control period (50 Hz)
-    np.testing.assert_array_equal(run_a.errors["heading"][:3], run_a.errors["heading"][:3])
+    # the frozen estimate (level, facing East) against the truth (figure8 starts north-east)
+    np.testing.assert_allclose(run_a.errors["heading"][:3], 90.0 - 45.0, atol=0.5)
 
 
 def test_library_runs_are_cached_by_everything_that_makes_them():
@@ -44,7 +45,9 @@ def test_library_runs_are_cached_by_everything_that_makes_them():
     again = drive("figure8", estimator="poisson", seed=0, duration_s=4.0)
     assert again.run is first.run
     assert drive("figure8", estimator="poisson", seed=1, duration_s=4.0).run is not first.run
-    assert drive("figure8", estimator=("poisson", {}), seed=0, duration_s=4.0).run is not first.run or True
+    labelled = drive("figure8", estimator="poisson", seed=0, duration_s=4.0, label="mine")
+    assert labelled.run is not first.run and labelled.key == "mine"
+    assert not first.run.truth.packed.flags.writeable  # shared between tests: read-only
     # a changed route is another key: nothing stale comes back
     route = load_route("figure8")
     data = {"name": "figure8", "description": route.description, "closed": True,
@@ -60,6 +63,8 @@ def test_bounds_and_closure_errors_are_clear():
         run.assert_max_error(roll=-1.0)
     with pytest.raises(ValueError, match="at least one bound"):
         run.assert_rms_error()
+    with pytest.raises(ValueError, match="leaves no samples"):
+        run.assert_rms_error(heading=1e-9, after_s=1000.0)
     with pytest.raises(AssertionError, match="open or was not driven to its end"):
         run.assert_closure(heading=1.0)
     with pytest.raises(AssertionError, match="not completed"):

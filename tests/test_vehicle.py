@@ -61,8 +61,10 @@ def test_steady_circle_yaw_rate_and_lateral_specific_force(circle_run):
     assert gyro_z == pytest.approx(v / radius, rel=0.02)
     expected = v * v / radius + G * math.sin(float(np.mean(roll)))
     assert f_lat == pytest.approx(expected, rel=0.03)
-    # counter-clockwise circle: the body rolls outward (right side down, roll > 0)
-    assert 0.3 < math.degrees(np.mean(roll)) < 3.0
+    # counter-clockwise circle: the body rolls outward (right side down, roll > 0), about 4.5°
+    # per g of lateral acceleration (the README's figure)
+    gradient = math.degrees(np.mean(roll)) / (v * v / radius / G)
+    assert 4.0 < gradient < 5.0
 
 
 def test_at_rest_accelerometer_reads_g_up():
@@ -93,7 +95,7 @@ def test_at_rest_on_a_hill_specific_force_is_gravity_in_body_axes(yaw_deg):
     expected = quat_rotate(np.array([q[0], -q[1], -q[2], -q[3]]), [0.0, 0.0, G])
     np.testing.assert_allclose(f, expected, atol=0.02)
     # grade along the car: the slope between its axles
-    front, rear = data.site_xpos[ix.imu_site], data.sensordata[ix.rear_axle_pos]
+    rear = data.sensordata[ix.rear_axle_pos]
     ground = Terrain((hill,))
     xa, ya = rear[:2]
     xb, yb = xa + 2.64 * math.cos(yaw), ya + 2.64 * math.sin(yaw)
@@ -101,7 +103,6 @@ def test_at_rest_on_a_hill_specific_force_is_gravity_in_body_axes(yaw_deg):
     pitch = euler_from_quat(q)[1]
     assert pitch < 0  # nose up
     assert pitch == pytest.approx(-math.atan(grade), abs=math.radians(0.6))
-    del front
 
 
 def test_terrain_in_mujoco_matches_the_analytic_heights():
@@ -150,11 +151,14 @@ def test_ackermann_polynomials_fit_the_geometry():
 
 def test_vehicle_parameters_are_those_of_a_compact_car():
     p = vehicle_parameters()
-    assert p["total_mass_kg"] == pytest.approx(1300.0)
+    assert p["total_mass_kg"] == pytest.approx(1300.0) and p["sprung_mass_kg"] == pytest.approx(1160.0)
     assert p["wheelbase_m"] == pytest.approx(2.64) and p["track_m"] == pytest.approx(1.54)
+    # the whole car's centre of mass lies below the sprung mass's (the wheels are low)
+    unsprung_height = 0.316  # wheel centres
+    expected = (1160.0 * p["sprung_cg_height_m"] + 140.0 * unsprung_height) / 1300.0
+    assert p["cg_height_m"] == pytest.approx(expected, abs=0.01)
     # the static ride height puts the suspension at zero travel: springs carry the sprung weight
-    sprung_front = p["sprung_mass_kg"] + 1.0  # with the steering column
-    load = sprung_front * G * (1 - p["cg_behind_front_axle_m"] / p["wheelbase_m"]) / 2
+    load = p["sprung_mass_kg"] * G * (1 - p["cg_behind_front_axle_m"] / p["wheelbase_m"]) / 2
     assert load / p["spring_front_n_per_m"] == pytest.approx(0.1497, abs=5e-4)
     # ride frequency of the front corners about 1.3 Hz
     assert math.sqrt(p["spring_front_n_per_m"] / (load / G)) / (2 * math.pi) == pytest.approx(1.3, abs=0.05)

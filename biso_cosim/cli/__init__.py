@@ -39,8 +39,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (UserError, ValueError, KeyError, FileNotFoundError) as exc:
-        # Input problems: the message names the argument; no traceback for the user.
+    except (UserError, ValueError, TypeError, KeyError, FileNotFoundError) as exc:
+        # Input problems (the message names the argument): one line, no traceback. A command
+        # that has checked its input and started the real work sets args.running, after
+        # which an exception is a bug and keeps its traceback.
+        if getattr(args, "running", False) and not isinstance(exc, UserError):
+            raise
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"biso-cosim {args.command}: error: {message}", file=sys.stderr)
         return 2

@@ -10,7 +10,6 @@ from pathlib import Path
 from biso_cosim.cli import UserError
 
 BASELINE = "poisson"
-DEFAULT_ESTIMATORS = ("biso", "biso_plus")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -101,7 +100,7 @@ def print_summary(summary: dict) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, CoSimulation
+    from biso_cosim.cosim import DEFAULT_ESTIMATORS, DEFAULT_SENSOR_PROFILE, CoSimulation
     from biso_cosim.logs import write_run_log
     from biso_cosim.plotting import plot_navigation, plot_run
     from biso_cosim.routes import load_route
@@ -111,7 +110,7 @@ def main(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")
     route = load_route(args.route)
-    names = list(dict.fromkeys(args.estimator or DEFAULT_ESTIMATORS))
+    names = list(dict.fromkeys(args.estimator or [n for n in DEFAULT_ESTIMATORS if n != BASELINE]))
     if not args.no_baseline and BASELINE not in names:
         names.append(BASELINE)
     out = Path(args.out or Path("out") / route.name)
@@ -119,6 +118,7 @@ def main(args: argparse.Namespace) -> int:
                        sensor_profile=args.sensor_profile or DEFAULT_SENSOR_PROFILE,
                        gyro_calibration_s=args.gyro_calibration, navigators=args.navigator)
     out.mkdir(parents=True, exist_ok=True)
+    args.running = True  # from here on an exception is not an input problem (see cli.main)
     result = sim.run(progress=not args.no_progress)
     summary = result.summary()
     print_summary(summary)

@@ -214,8 +214,10 @@ def track_to_route_data(track: Track, *, name: str | None = None, description: s
         if not (math.isfinite(value) and value >= 0.0):
             raise ValueError(f"{label} must be >= 0, got {value!r}")
     h = track.alt_m if track.alt_m is not None else np.zeros_like(track.lat_deg)
-    e, n, u = pymap3d.geodetic2enu(track.lat_deg, track.lon_deg, h, track.lat_deg[0], track.lon_deg[0], h[0])
-    xyz = np.column_stack([e, n, u])
+    e, n, _ = pymap3d.geodetic2enu(track.lat_deg, track.lon_deg, h, track.lat_deg[0], track.lon_deg[0], h[0])
+    # heights from the ellipsoidal heights themselves: ENU "up" drops with the Earth's
+    # curvature (7.8 m over 10 km), which is not a grade of the road
+    xyz = np.column_stack([e, n, h - h[0]])
     step = np.hypot(np.diff(xyz[:, 0]), np.diff(xyz[:, 1]))
     s = np.concatenate([[0.0], np.cumsum(step)])
     if s[-1] < 2.0 * spacing_m:

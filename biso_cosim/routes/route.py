@@ -331,6 +331,8 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
     known = set(Waypoint.__dataclass_fields__)
     for i, wp in enumerate(raw_waypoints):
         label = f"{where}: waypoint[{i}]"
+        if not isinstance(wp, dict):
+            raise ValueError(f"{label} must be a table ([[waypoint]] with x_m, y_m, ...), got {wp!r}")
         unknown = set(wp) - known
         if unknown:
             raise ValueError(f"{label}: unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
@@ -357,9 +359,16 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
             raise ValueError(f"{where}: a closed route returns to waypoint[0] by itself; "
                              f"remove the last waypoint, which repeats the first")
     else:
-        for end in (0, len(waypoints) - 1):
+        last = len(waypoints) - 1
+        for end in (0, last):
             if waypoints[end].radius_m > 0.0:
                 raise ValueError(f"{where}: waypoint[{end}].radius_m must be 0 at the ends of an open route")
+        if waypoints[last].stop_s > 0.0:
+            raise ValueError(f"{where}: waypoint[{last}].stop_s: an open route ends at its last waypoint, where "
+                             "the car stops for good; a stop there has no meaning")
+        if waypoints[last].reverse != waypoints[last - 1].reverse:
+            raise ValueError(f"{where}: waypoint[{last}].reverse: the last waypoint of an open route has no leg "
+                             "of its own, so it cannot change the direction of travel")
 
     terrain_data = data.get("terrain", {})
     if not isinstance(terrain_data, dict):

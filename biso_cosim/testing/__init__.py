@@ -11,14 +11,15 @@ A test reads like the requirement it checks::
 ``estimator`` is a library name (``"biso"``), a ``(name, params)`` pair, or your own object
 with ``update(gyro_b, accel_b, mag_b)`` returning the (k, 4) ``q_wb`` of the k samples it was
 given (see :class:`biso_cosim.cosim.CoSimulation`). A failing assertion says which angle,
-when it first went over, how long it stayed over, and the largest error with where on the
+when it first went over, for how long in all, and the largest error with where on the
 route it happened.
 
-Runs of library estimators are cached for the session, keyed by everything that makes a run
-(the route's content, the estimator and its parameters, the seed, the duration, the sensor
-options), so a suite that drives the same route several times simulates it once, and a
-changed route file is a different key: nothing stale comes back. Runs with your own
-estimator objects are never cached (they hold state).
+Runs of library estimators are cached for the session (the 16 most recent), keyed by
+everything that makes a run (the route's content, the estimator, its parameters and label,
+the seed, the duration, the sensor options and a profile file's content), so a suite that
+drives the same route several times simulates it once, and a changed route or profile file
+is a different key: nothing stale comes back. Cached results are read-only. Runs with your
+own estimator objects are never cached (they hold state).
 
 With pytest, the plugin (registered automatically) offers the fixture ``drive_route`` (this
 ``drive``) and the marker ``biso_route``::
@@ -31,6 +32,7 @@ With pytest, the plugin (registered automatically) offers the fixture ``drive_ro
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -41,7 +43,8 @@ from biso_cosim.metrics import ANGLES
 __all__ = ["drive", "DriveResult", "AttitudeErrorExceeded", "clear_cache"]
 
 _ALL = (*ANGLES, "total")
-_CACHE: dict[tuple, Any] = {}
+_CACHE: "OrderedDict[tuple, Any]" = OrderedDict()
+_CACHE_SIZE = 16
 
 
 class AttitudeErrorExceeded(AssertionError):
@@ -53,7 +56,7 @@ def clear_cache() -> None:
     _CACHE.clear()
 
 
-def _cache_key(route, estimator, seed, duration_s, options) -> tuple | None:
+def _cache_key(route, estimator, seed, duration_s, label, options) -> tuple | None:
     if isinstance(estimator, str):
         est = (estimator, ())
     elif (isinstance(estimator, tuple) and len(estimator) == 2 and isinstance(estimator[0], str)
@@ -65,7 +68,22 @@ def _cache_key(route, estimator, seed, duration_s, options) -> tuple | None:
         hash(route)
     except TypeError:
         return None
-    return route, est, seed, duration_s, tuple(sorted((k, repr(v)) for k, v in options.items()))
+    from biso_cosim.cosim import _profile_content
+
+    profile = _profile_content(options.get("sensor_profile"))
+    return route, est, seed, duration_s, label, profile, tuple(sorted((k, repr(v)) for k, v in options.items()))
+
+
+def _read_only(run: Any) -> Any:
+    """Mark a cached run's arrays read-only: tests share it."""
+    for value in vars(run).values():
+        arrays = [value] if isinstance(value, np.ndarray) else (
+            [v for v in vars(value).values() if isinstance(v, np.ndarray)] if hasattr(value, "__dict__") else [])
+        if hasattr(value, "packed"):
+            arrays.append(value.packed)
+        for array in arrays:
+            array.flags.writeable = False
+    return run
 
 
 def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: float | None = None,
@@ -79,8 +97,9 @@ def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: flo
     from biso_cosim.routes import load_route
 
     route = load_route(route)
-    key = _cache_key(route, estimator, seed, duration_s, options)
+    key = _cache_key(route, estimator, seed, duration_s, label, options)
     if key is not None and key in _CACHE:
+        _CACHE.move_to_end(key)
         run = _CACHE[key]
     else:
         if isinstance(estimator, tuple):
@@ -91,7 +110,9 @@ def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: flo
             spec = estimator
         run = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=[spec], **options).run()
         if key is not None:
-            _CACHE[key] = run
+            _CACHE[key] = _read_only(run)
+            while len(_CACHE) > _CACHE_SIZE:
+                _CACHE.popitem(last=False)
     return DriveResult(run, next(iter(run.estimates)))
 
 
@@ -127,9 +148,15 @@ class DriveResult:
         return f"{self.run.route.name} with {self.key} (seed {self.run.seed})"
 
     def _where(self, index: int) -> str:
-        p = self.run.truth.pos_w[index]
-        s = self.run.route.path.locate(float(p[0]), float(p[1]), 0, back=0, ahead=len(self.run.route.path))[1]
-        return f"t = {self.t_s[index]:.2f} s, about {s:.0f} m along the route"
+        """When, and where along the route (the driver's logged progress, so that laps and the
+        branches of a figure eight are told apart)."""
+        t = float(self.t_s[index])
+        run = self.run
+        n = run.progress_m.shape[0]
+        # progress is measured at the start of each control period
+        starts = run.log_start_s + np.arange(n) * (run.duration_s - run.log_start_s) / n
+        s = float(np.interp(t, starts, run.progress_m))
+        return f"t = {t:.2f} s, about {s:.0f} m along the route"
 
     @staticmethod
     def _bounds(given: dict[str, float | None]) -> dict[str, float]:
@@ -173,9 +200,14 @@ class DriveResult:
         """The RMS error (degrees) of each angle from ``after_s`` on is within its bound."""
         bounds = self._bounds({"roll": roll, "pitch": pitch, "heading": heading, "total": total})
         window = self.t_s >= after_s
+        if not window.any():
+            raise ValueError(f"after_s = {after_s} s leaves no samples (the drive lasted {self.t_s[-1]:.1f} s)")
         problems = []
         for angle, bound in bounds.items():
             rms = float(np.sqrt(np.mean(self.errors[angle][window] ** 2)))
+            if not math.isfinite(rms):
+                problems.append(f"{angle} RMS error is not a number (the estimate has NaN)")
+                continue
             if rms > bound:
                 problems.append(f"{angle} RMS error {rms:.3f}° is over {bound:g}° (from t = {after_s:g} s)")
         if problems:

@@ -131,7 +131,13 @@ def vehicle_parameters(model: mujoco.MjModel | None = None) -> dict[str, float]:
     idx = CarIndex.of(model)
     chassis = idx.chassis_body
     total = float(model.body_subtreemass[chassis])
-    sprung = float(model.body_mass[chassis])
+    # sprung: everything above the springs (the chassis and the steering column)
+    sprung = float(model.body_mass[chassis] + model.body_mass[model.body("steering").id])
+    # the model's initial pose is the static one (zero suspension travel under the springs'
+    # preload): the whole car's centre of mass there
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
     front_axle_x = float(model.body("fl_corner").pos[0])
     susp = {name: model.joint(f"{name}_susp") for name in ("fl", "rl")}
     return {
@@ -140,7 +146,8 @@ def vehicle_parameters(model: mujoco.MjModel | None = None) -> dict[str, float]:
         "wheelbase_m": idx.wheelbase_m,
         "track_m": idx.track_m,
         "cg_behind_front_axle_m": front_axle_x,
-        "cg_height_m": float(model.body("chassis").pos[2]),
+        "sprung_cg_height_m": float(model.body("chassis").pos[2]),
+        "cg_height_m": float(data.subtree_com[chassis][2]),
         "wheel_radius_m": idx.wheel_radius_m,
         "spring_front_n_per_m": float(model.jnt_stiffness[susp["fl"].id]),
         "spring_rear_n_per_m": float(model.jnt_stiffness[susp["rl"].id]),

@@ -32,7 +32,7 @@ def _columns(index: int | slice, doc: str) -> property:
 
 
 class Truth:
-    """True motion at the IMU site, one row per instant, packed in one (n, 22) array.
+    """True motion at the IMU site, one row per instant, packed in one (n, 23) array.
 
     Columns: ``t_s``; ``omega_b`` (rad/s, body axes); ``specific_force_b`` (m/s², +g up at
     rest); ``q_wb`` (attitude of the body, i.e. of the IMU site, in ENU); ``pos_w`` (m);
@@ -115,7 +115,7 @@ class VehicleSim:
         # array object each time (about 1 µs), and the buffer never moves
         self._sensordata = self.data.sensordata
         ix = self.index
-        # sensordata columns of Truth's columns 1..21, in order
+        # sensordata columns of Truth's columns 1..22, in order
         self._settled: tuple[np.ndarray, np.ndarray] | None = None
         self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
                              np.arange(ix.quat.start, ix.quat.stop), np.arange(ix.pos.start, ix.pos.stop),

@@ -167,6 +167,9 @@ class Bank:
             raise ValueError("bank: width_m must be smaller than the diameter 2·radius_m")
         if self.ramp_deg <= 0.0:
             raise ValueError(f"bank: ramp_deg must be > 0, got {self.ramp_deg}")
+        if (self.end_deg - self.start_deg) % 360.0 == 0.0:
+            raise ValueError("bank: start_deg and end_deg must differ (modulo 360); a bank runs "
+                             "counter-clockwise from start_deg to end_deg")
 
 
 class _Stretch:
@@ -413,6 +416,8 @@ class Road:
         xyz = self._xyz
         if not np.all(np.isfinite(xyz)) or xyz[:, 2].min() < 0.0:
             raise ValueError("road: points must be finite with z_m >= 0 (heights above the ground plane)")
+        if np.hypot(np.diff(xyz[:, 0]), np.diff(xyz[:, 1])).sum() < 1.0:
+            raise ValueError("road: the points must span at least 1 m horizontally")
         _positive(self, "half_width_m")
         _positive(self, "shoulder_m")
         _positive(self, "resolution_m")
@@ -425,6 +430,8 @@ def _positive(feature, name: str) -> None:
         kind = type(feature).__name__.lower()
         raise ValueError(f"{kind}: {name} must be a positive number, got {value!r}")
 
+
+_MAX_PATCH_CELLS = 2e7  # 80 MB of float32 heights per patch
 
 FEATURE_TYPES = {"hill": Hill, "ridge": Ridge, "bank": Bank, "hump": Hump, "washboard": Washboard,
                  "rough": Rough, "road": Road}
@@ -506,6 +513,11 @@ class Terrain:
             merged.append(box)
         out = []
         for x_min, x_max, y_min, y_max, res in merged:
+            cells = ((x_max - x_min) / res + 3) * ((y_max - y_min) / res + 3)
+            if cells > _MAX_PATCH_CELLS:
+                raise ValueError(f"terrain: features covering {x_max - x_min:.0f} m × {y_max - y_min:.0f} m at "
+                                 f"{res} m make a height field of {cells:.3g} cells (at most {_MAX_PATCH_CELLS:.0e}); "
+                                 "make the features smaller or their grid coarser")
             x0 = math.floor(x_min / res) * res - res
             y0 = math.floor(y_min / res) * res - res
             ncol = int(math.ceil((x_max + res - x0) / res)) + 1
