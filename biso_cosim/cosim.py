@@ -477,6 +477,8 @@ class CoSimulation:
                 extra["speed_mps"] = self._odometry_mps(at_samples)
             if "gnss" in inputs:
                 extra["gnss"] = fixes
+            if "imu_flags" in inputs:  # the sensor's saturation and overflow bits
+                extra["imu_flags"] = samples.flags
             outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
         self._log["truth"].append(at_samples)
         self._log["imu"].append(samples)

@@ -22,7 +22,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from biso_cosim.frames import quat_rotate
+from biso_cosim._numba import jit
+from biso_cosim.frames import _qrot_inv, quat_rotate
 
 __all__ = ["EarthField", "MagneticEnvironment", "Dipole", "SteelBeam", "SARATOV"]
 
@@ -120,6 +121,14 @@ class EarthField:
             f"EarthField({self.model}, lat={self.lat_deg:g}°, lon={self.lon_deg:g}°, alt={self.alt_m:g} m: "
             f"|B|={self.total_ut:.2f} µT, D={math.degrees(self.declination_rad):+.2f}°, I={math.degrees(self.inclination_rad):+.2f}°)"
         )
+
+
+@jit
+def _rotate_into_body(q_wb, field_w, out):
+    """out[k] = q_wb[k]* ∘ field_w ∘ q_wb[k] (the same world vector into each attitude)."""
+    for k in range(q_wb.shape[0]):
+        out[k, 0], out[k, 1], out[k, 2] = _qrot_inv(q_wb[k, 0], q_wb[k, 1], q_wb[k, 2], q_wb[k, 3],
+                                                    field_w[0], field_w[1], field_w[2])
 
 
 def _points(p_w: Any, name: str = "p_w") -> tuple[np.ndarray, bool]:
@@ -248,5 +257,15 @@ class MagneticEnvironment:
         q = np.asarray(q_wb, dtype=np.float64)
         if q.shape[-1:] != (4,) or q.ndim > 2:
             raise ValueError(f"q_wb must have shape (4,) or (n, 4), got {q.shape}")
+        if not self.disturbances and q.ndim == 2:
+            # the common case, once per control period in the loop: a constant world field,
+            # rotated into each body attitude by one kernel call
+            p = np.asarray(p_w, dtype=np.float64)
+            if p.shape != (q.shape[0], 3) or not np.isfinite(p).all():
+                _points(p_w)  # the error naming p_w
+                raise ValueError(f"p_w must have shape ({q.shape[0]}, 3), got {p.shape}")
+            out = np.empty((q.shape[0], 3))
+            _rotate_into_body(q, self.earth.field_enu_ut, out)
+            return out
         field = self.field_w(p_w, t_s)
         return quat_rotate(q * np.array([1.0, -1.0, -1.0, -1.0]), field)
