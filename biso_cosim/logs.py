@@ -13,12 +13,14 @@ One row per sensor output sample. Columns, in order:
 | ``accel_x_m_s2`` … ``accel_z_m_s2`` | m/s² | accelerometer reading (specific force), body axes |
 | ``mag_x_ut`` … ``mag_z_ut`` | µT | magnetometer reading, body axes |
 | ``imu_flags`` | | sensor flag bits (saturation, overflow) |
+| ``declination_deg`` | ° | magnetic declination at the site, east positive (the same in every row) |
 | ``<est>_qw`` … ``<est>_qz`` | 1 | each estimator's ``q_wb`` |
 | ``<est>_roll_deg``, ``<est>_pitch_deg``, ``<est>_heading_deg`` | ° | its angles |
 | ``<est>_flags`` | | its flag bits |
 
 Body axes are x forward, y left, z up. The sensor columns are also the input format of
-``biso-cosim estimate`` (``t_s`` optional there), so an estimator can be re-run on a log.
+``biso-cosim estimate`` (``t_s``, ``imu_flags`` and ``declination_deg`` optional there), so an
+estimator can be re-run on a log.
 """
 
 from __future__ import annotations
@@ -63,9 +65,9 @@ def write_run_log(result, path: str | Path) -> Path:
         names += list(SENSOR_COLUMNS[key])
         cols += [values[:, i] for i in range(3)]
         fmts += ["%.9g"] * 3
-    names.append("imu_flags")
-    cols.append(imu.flags)
-    fmts.append("%d")
+    names += ["imu_flags", "declination_deg"]
+    cols += [imu.flags, np.full(truth.t_s.shape[0], result.site["declination_deg"])]
+    fmts += ["%d", "%.9g"]
     for key, (q, flags) in result.estimates.items():
         n, c, f = _attitude_columns(key, q)
         names += n + [f"{key}_flags"]

@@ -334,11 +334,12 @@ class BisoSlave(Fmi2Slave):
         Parameters of other estimators that the host set are ignored with a warning. With
         ``site_declination``, an unset ``declination_rad`` takes the site's declination.
         """
-        from biso_cosim.estimators import estimator_names
+        from biso_cosim.fmu.variables import fmu_estimator_names
 
         name = self.values["estimator"]
-        if name not in estimator_names():
-            raise ValueError(f"estimator must be one of {', '.join(estimator_names())}, got {name!r}")
+        if name not in fmu_estimator_names():
+            raise ValueError(f"estimator must be one of {', '.join(fmu_estimator_names())}, got {name!r}"
+                             " (the GNSS-aided estimators are not offered in the FMUs)")
         params: dict[str, Any] = {}
         ignored = []
         for v in self.specs:

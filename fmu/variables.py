@@ -137,6 +137,15 @@ def _fmi_kind(hint: Any) -> str | None:
     return None
 
 
+def fmu_estimator_names() -> tuple[str, ...]:
+    """The estimators an FMU can run: those whose inputs FMI variables carry. The GNSS-aided
+    ones (``gnss_*``) need a stream of fixes with times of validity and arrival, which the
+    FMUs do not take yet; they are Python-only."""
+    from biso_cosim.estimators import estimator_inputs, estimator_names
+
+    return tuple(n for n in estimator_names() if "gnss" not in estimator_inputs(n))
+
+
 @functools.cache
 def estimator_param_groups() -> dict[str, tuple[dict[str, Any], ...]]:
     """For each estimator name: its parameter rows (``describe_estimator``) with ``kind``
@@ -155,10 +164,10 @@ def python_only_params() -> dict[str, list[str]]:
 
 @functools.cache
 def _typed_rows() -> dict[str, tuple[dict[str, Any], ...]]:
-    from biso_cosim.estimators import describe_estimator, estimator_names, make_estimator
+    from biso_cosim.estimators import describe_estimator, make_estimator
 
     out = {}
-    for name in estimator_names():
+    for name in fmu_estimator_names():
         hints = typing.get_type_hints(make_estimator(name, 200.0).Params)
         out[name] = tuple({**row, "kind": _fmi_kind(hints[row["name"]]), "optional": _optional(hints[row["name"]])}
                           for row in describe_estimator(name)["params"])
@@ -182,9 +191,9 @@ def estimator_variables(*, tunable: bool = True, notes: dict[str, str] | None = 
     Only the group of the chosen estimator is used; ``notes`` appends text to the
     description of parameters of that name (e.g. a different default in one FMU).
     """
-    from biso_cosim.estimators import describe_estimator, estimator_names
+    from biso_cosim.estimators import describe_estimator
 
-    names = estimator_names()
+    names = fmu_estimator_names()
     summary = "; ".join(f"{n}: {describe_estimator(n)['summary']}" for n in names)
     out = [Var("estimator", "String", "parameter", "fixed", "biso",
                f"attitude estimator, one of {', '.join(names)} ({summary})", key=("estimator",))]

@@ -19,7 +19,7 @@ from biso_cosim.estimators import (
     make_estimator,
     reference_attitude,
 )
-from biso_cosim.estimators.biso import EARTH_RATE, gains_from_cutoff, stability
+from biso_cosim.estimators.biso import EARTH_RATE, gains_from_cutoff, geographic_rate, stability
 
 FIELD = np.array(mo.EARTH_FIELD_W)
 
@@ -61,15 +61,26 @@ def ref_lambda_k(f, m, decl):
     return np.roll(r.as_quat(), 1)
 
 
+def ref_omega_g(latitude, vel, altitude=0.0):
+    """Earth rate + transport rate in ENU, WGS-84 radii of curvature (written out here)."""
+    a, e2 = 6378137.0, 6.69437999014e-3
+    s2 = math.sin(latitude) ** 2
+    rm = a * (1 - e2) / (1 - e2 * s2) ** 1.5 + altitude
+    rn = a / math.sqrt(1 - e2 * s2) + altitude
+    ve, vn = vel[0], vel[1]
+    return (7.292115e-5 * np.array([0, math.cos(latitude), math.sin(latitude)])
+            + np.array([-vn / rm, ve / rn, ve * math.tan(latitude) / rn]))
+
+
 def ref_biso(gyro, accel, mag, fs, *, k=44.4, kp=25.64, pattern=12, norm_gain=1.0, renormalize=False,
-             decl=0.0, latitude=None, q0=None):
+             decl=0.0, latitude=None, vel=None, q0=None):
     h = 1.0 / fs
     g = g_matrix_q(k, kp, pattern)
-    wg = np.zeros(3) if latitude is None else EARTH_RATE * np.array([0, math.cos(latitude), math.sin(latitude)])
-    lwg = L((0, *(-0.5 * wg)))
     lam = None if q0 is None else np.asarray(q0, float)
     out = []
     for i in range(gyro.shape[0]):
+        wg = np.zeros(3) if latitude is None else ref_omega_g(latitude, np.zeros(3) if vel is None else vel[i])
+        lwg = L((0, *(-0.5 * wg)))
         qk = ref_lambda_k(accel[i], mag[i], decl)
         if lam is None:
             lam = qk
@@ -102,22 +113,80 @@ def noisy(motion, rng, sg=0.02, sa=0.2, sm=1.0, bias=(0.01, -0.02, 0.015)):
 # --------------------------------------------------------------------------------------
 
 
+# a vehicle's velocity, fast enough that the transport rate is not lost in rounding
+VELOCITY = "velocity"
+
+
 @pytest.mark.parametrize("fs", [100.0, 1000.0])
 @pytest.mark.parametrize("opts", [
     {},
     {"renormalize": True},
     {"norm_gain": 0.0, "latitude": 0.9, "decl": 0.2},
+    {"latitude": -0.6, "vel": VELOCITY},
     {"pattern": 13},
+    {"pattern": 13, "latitude": 1.2, "vel": VELOCITY},
     {"k": (30.0, 44.0, 50.0, 40.0), "kp": (20.0, 25.0, 22.0, 27.0)},
 ])
 def test_kernel_matches_slow_reference(fs, opts):
     m = mo.make_motion("tumble", 2.0 if fs == 100.0 else 0.3, fs)
     gyro, accel, mag = noisy(m, np.random.default_rng(3))
+    opts = dict(opts)
+    inputs = {}
+    if opts.get("vel") is VELOCITY:
+        t = np.arange(len(m)) / fs
+        opts["vel"] = np.stack([300.0 * np.cos(t), -250.0 * np.sin(0.7 * t), np.zeros_like(t)], axis=1)
+        inputs["velocity_enu_mps"] = opts["vel"]
     ref = ref_biso(gyro, accel, mag, fs, **opts)
     names = {"kp": "k_p", "decl": "declination_rad", "latitude": "latitude_rad"}
-    params = {names.get(key, key): v for key, v in opts.items()}
-    q = estimate_attitude(gyro, accel, mag, fs, "biso", **params)
+    params = {names.get(key, key): v for key, v in opts.items() if key != "vel"}
+    q = estimate_attitude(gyro, accel, mag, fs, "biso", **params, **inputs)
     assert np.max(fr.quat_angle_between(q, ref)) < 1e-10
+
+
+def test_geographic_rate_and_the_transport_rate():
+    """ω_g against the formula written out in the test, and its physics: an estimator that
+    knows ω_g keeps a level vehicle level and on its heading while the geographic frame turns
+    under it; without ω_g, the gyro alone drifts at |ω_g|."""
+    lat, vel = 0.8, np.array([30.0, -20.0, 1.0])
+    np.testing.assert_allclose(geographic_rate(lat, vel), ref_omega_g(lat, vel), rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(geographic_rate(lat), EARTH_RATE * np.array([0, math.cos(lat), math.sin(lat)]))
+    # east at 300 m/s at the equator: transport rate v/R about north
+    np.testing.assert_allclose(geographic_rate(0.0, [300.0, 0, 0])[1] - EARTH_RATE, 300.0 / 6378137.0, rtol=1e-12)
+    # a vehicle holding its attitude in the geographic frame: the gyro measures ω_g in body axes
+    fs, n = 100.0, 6000
+    q = fr.quat_from_euler(0.02, -0.01, 1.0)
+    v = np.tile([200.0, 150.0, 0.0], (n, 1))
+    gyro = np.tile(fr.quat_rotate(fr.quat_conjugate(q), geographic_rate(lat, v[0])), (n, 1))
+    f = np.tile(fr.quat_rotate(fr.quat_conjugate(q), np.array([0, 0, 9.8])), (n, 1))
+    b = np.tile(fr.quat_rotate(fr.quat_conjugate(q), FIELD), (n, 1))
+    held = estimate_attitude(gyro, f, b, fs, "poisson", latitude_rad=lat, q0=q, velocity_enu_mps=v)
+    assert np.max(fr.quat_angle_between(held, q)) < 1e-12
+    drift = estimate_attitude(gyro, f, b, fs, "poisson", q0=q)
+    assert fr.quat_angle_between(drift[-1], q) == pytest.approx(np.linalg.norm(geographic_rate(lat, v[0])) * (n - 1) / fs,
+                                                                 rel=1e-6)
+    with pytest.raises(ValueError, match="latitude_rad"):
+        make_estimator("biso", fs).update(gyro[:3], f[:3], b[:3], velocity_enu_mps=v[:3])
+    with pytest.raises(ValueError, match="velocity_enu_mps"):
+        make_estimator("biso", fs, latitude_rad=lat).update(gyro[:3], f[:3], b[:3], velocity_enu_mps=v[:2])
+    with pytest.raises(ValueError, match="latitude_rad"):
+        make_estimator("biso", fs, latitude_rad=1.5705)
+
+
+def test_norm_flow_far_from_unit_norm_is_the_exact_logistic_flow():
+    """λ with |λ|² = 1.44 (the series is not used there) and with |λ|² − 1 = 1e-6 (it is):
+    one step of poisson with the norm term against the exact flow |λ|² E/(1 + |λ|²(E − 1))."""
+    fs, gn = 50.0, 3.0
+    e = math.exp(2 * gn / fs)
+    for n2 in (1.44, 1.0 + 1e-6, 1.0 - 1e-6):
+        est = make_estimator("poisson", fs, norm_gain=gn)
+        est.update(np.zeros((1, 3)), np.array([[0, 0, 9.8]]), FIELD[None])
+        st = est.get_state()
+        v = st.values.copy()
+        v[1:5] = math.sqrt(n2) * np.array([0.5, 0.5, -0.5, 0.5])
+        est.set_state(type(st)(st.method, v, st.layout))
+        est.update(np.zeros((1, 3)), np.array([[0, 0, 9.8]]), FIELD[None])
+        lam = est.get_state()["lam"]
+        assert lam @ lam == pytest.approx(n2 * e / (1 + n2 * (e - 1)), rel=1e-15)
 
 
 def test_error_dynamics_are_exact_at_100_hz():

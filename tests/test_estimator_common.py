@@ -126,3 +126,68 @@ def test_estimate_attitude_equals_update_and_describe_lists_params(name):
     np.testing.assert_array_equal(full.q_wb, q)
     info = describe_estimator(name)
     assert info["summary"] and all(r["unit"] is not None and r["doc"] for r in info["params"])
+
+
+# --------------------------------------------------------------------------------------
+# saturation and the sensor's own flags (input imu_flags), for every estimator
+# --------------------------------------------------------------------------------------
+
+
+def test_imu_flag_bits_are_the_sensor_package_bits():
+    from biso_cosim.sensors import ImuFlag
+
+    assert (fl.IMU_GYRO_SATURATED, fl.IMU_ACCEL_SATURATED, fl.IMU_MAG_OVERFLOW, fl.IMU_MAG_OVERRUN,
+            fl.IMU_MAG_INVALID) == (ImuFlag.GYRO_SATURATED, ImuFlag.ACCEL_SATURATED, ImuFlag.MAG_OVERFLOW,
+                                    ImuFlag.MAG_OVERRUN, ImuFlag.MAG_INVALID)
+
+
+def _clean(n=200):
+    m = mo.make_motion("rotation", n / 200.0, 200.0, omega_b=(0.2, -0.3, 0.4))
+    return m, m.omega_b.copy(), m.specific_force_b.copy(), m.mag_b.copy()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_saturated_samples_are_flagged_and_not_used(name):
+    """A sample the sensor flags (imu_flags) or that reaches a declared full scale: a saturated
+    accelerometer or overflowed magnetometer sample is treated as a missing one (the same
+    attitude as with NaN there), a saturated gyro sample is used as it is; all are flagged."""
+    m, gyro, accel, mag = _clean()
+    sat = np.zeros(len(m), dtype=np.int64)
+    sat[50] = fl.IMU_ACCEL_SATURATED
+    sat[60] = fl.IMU_MAG_OVERFLOW
+    sat[70] = fl.IMU_GYRO_SATURATED
+    sat[80] = fl.IMU_MAG_INVALID | fl.IMU_MAG_OVERRUN
+    out = make_estimator(name, 200.0).update(gyro, accel, mag, imu_flags=sat)
+    nan_accel, nan_mag = accel.copy(), mag.copy()
+    nan_accel[50] = np.nan
+    nan_mag[[60, 80]] = np.nan
+    ref = make_estimator(name, 200.0).update(gyro, nan_accel, nan_mag)
+    np.testing.assert_array_equal(out.q_wb, ref.q_wb)
+    assert out.flags[50] & fl.SATURATED and out.flags[50] & fl.ACCEL_INVALID and out.flags[50] & fl.MAG_INVALID
+    assert out.flags[60] & fl.SATURATED and out.flags[60] & fl.MAG_INVALID and not out.flags[60] & fl.ACCEL_INVALID
+    assert out.flags[70] & fl.SATURATED and not out.flags[70] & (fl.GYRO_INVALID | fl.ACCEL_INVALID)
+    assert out.flags[80] & fl.MAG_INVALID and not out.flags[80] & fl.SATURATED
+    others = np.setdiff1d(np.arange(len(m)), [50, 60, 70, 80])
+    assert not np.any(out.flags[others] & (fl.SATURATED | fl.ACCEL_INVALID | fl.MAG_INVALID))
+    # the same from declared full scales: an axis at ≥ 99.9 % of it
+    accel[50] = [39.2, 0.0, 1.0]
+    gyro[70] = [-4.36, 0.0, 0.0]
+    ranged = make_estimator(name, 200.0, accel_range_mps2=39.2266, gyro_range_rad_s=4.3633).update(
+        gyro, accel, mag)
+    assert ranged.flags[50] & fl.SATURATED and ranged.flags[50] & fl.ACCEL_INVALID
+    assert ranged.flags[70] & fl.SATURATED and not ranged.flags[70] & fl.GYRO_INVALID
+    assert not np.any(ranged.flags[np.setdiff1d(np.arange(len(m)), [50, 70])] & fl.SATURATED)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_bad_imu_flags_are_refused_and_lose_nothing(name):
+    m, gyro, accel, mag = _clean(40)
+    est, ref = make_estimator(name, 200.0), make_estimator(name, 200.0)
+    for bad, err in (([1] * 39, ValueError), (np.full(40, -1), ValueError), (np.full(40, 0.5), ValueError),
+                     (np.array(["a"] * 40), TypeError)):
+        with pytest.raises(err, match="imu_flags"):
+            est.update(gyro, accel, mag, imu_flags=bad)
+    ok = est.update(gyro, accel, mag, imu_flags=np.zeros(40))  # whole floats (a CSV column) are fine
+    np.testing.assert_array_equal(ok.q_wb, ref.update(gyro, accel, mag).q_wb)
+    with pytest.raises(ValueError, match="gyro_range_rad_s"):
+        make_estimator(name, 200.0, gyro_range_rad_s=0.0)

@@ -55,9 +55,11 @@ def test_gyro_bias_is_learned_at_rest_and_in_motion():
     m = mo.make_motion("tumble", 60.0, 200.0, rate_scale=0.5)
     out = make_estimator("biso_plus", 200.0).update(m.omega_b + bias, m.specific_force_b, m.mag_b)
     assert not np.any(out.flags & fl.REST)
-    # in motion the bias filter is deliberately slow (VQF's tuning): more than half learned
+    # in motion the bias filter is deliberately slow (VQF's tuning): more than half learned;
+    # the residual bias turns the heading until the slow magnetometer correction (k_heading =
+    # 0.05/s, chosen for vehicles) holds it
     assert np.linalg.norm(out.gyro_bias_b[-1] - bias) < 0.5 * np.linalg.norm(bias)
-    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-2000:], m.q_wb[-2000:]))) < 1.5
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-2000:], m.q_wb[-2000:]))) < 2.0
 
 
 def test_magnet_is_detected_and_does_not_turn_the_heading():
@@ -73,15 +75,21 @@ def test_magnet_is_detected_and_does_not_turn_the_heading():
 
 
 def test_magnetometer_offset_is_estimated():
+    """A 6 µT offset turns the heading by ~20° at first; once the offset is learned the heading
+    follows the magnetometer back (at k_heading = 0.05/s: within a minute or so)."""
     offset = np.array([6.0, -4.0, 3.0])  # µT, body axes
-    m = mo.make_motion("tumble", 60.0, 200.0, rate_scale=0.5)
+    m = mo.make_motion("tumble", 120.0, 200.0, rate_scale=0.5)
     est = make_estimator("biso_plus", 200.0)
     out = est.update(m.omega_b, m.specific_force_b, m.mag_b + offset)
     np.testing.assert_allclose(est.get_state()["mag_offset_b"], offset, atol=0.3)
-    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-2000:], m.q_wb[-2000:]))) < 0.5
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[:2000], m.q_wb[:2000]))) > 10.0
+    assert np.degrees(np.max(fr.quat_angle_between(out.q_wb[-4000:], m.q_wb[-4000:]))) < 0.6
     off = make_estimator("biso_plus", 200.0, estimate_mag_offset=False).update(m.omega_b, m.specific_force_b,
                                                                                m.mag_b + offset)
-    assert np.degrees(np.max(fr.quat_angle_between(off.q_wb[-2000:], m.q_wb[-2000:]))) > 3.0
+    def rms_late(q):
+        return np.sqrt(np.mean(np.degrees(fr.quat_angle_between(q[-8000:], m.q_wb[-8000:])) ** 2))
+
+    assert rms_late(off.q_wb) > 3.0 * rms_late(out.q_wb)
 
 
 def _noisy_reference(n, sigma, rng, q_true):

@@ -1,4 +1,5 @@
-"""Attitude estimators: the faithful BISO of Aleshkin et al. (2024), its baselines and biso_plus.
+"""Attitude estimators: the faithful BISO of Aleshkin et al. (2024), its baselines, biso_plus
+and the GNSS-aided filters of Ibrahim & Lukyanov (2020).
 
 Conventions (the package's): samples in body axes (x forward, y left, z up), gyro in rad/s,
 accelerometer = specific force in m/s² (+g up at rest), magnetometer in µT; every estimator
@@ -18,12 +19,14 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 
 from biso_cosim.estimators import flags
 from biso_cosim.estimators._base import Estimate, Estimator, State, param_markdown, param_table
 from biso_cosim.estimators.biso import BisoEstimator, BisoParams
 from biso_cosim.estimators.biso_plus import BisoPlusEstimator, BisoPlusParams
 from biso_cosim.estimators.dcm_pi import DcmPiEstimator, DcmPiParams
+from biso_cosim.estimators.gnss_aided import GnssComplementaryEstimator, GnssKalmanEstimator
 from biso_cosim.estimators.reference import reference_attitude
 
 __all__ = [
@@ -43,6 +46,8 @@ __all__ = [
     "BisoPlusEstimator",
     "DcmPiParams",
     "DcmPiEstimator",
+    "GnssComplementaryEstimator",
+    "GnssKalmanEstimator",
     "flags",
 ]
 
@@ -60,6 +65,12 @@ _REGISTRY: dict[str, tuple[type, dict[str, Any], str]] = {
     "biso_plus": (BisoPlusEstimator, {},
                   "BISO family for vehicles: gyro-bias estimation, acceleration compensation from "
                   "speed, gating, magnetic disturbance detection, unbiased cross-link"),
+    "gnss_complementary": (GnssComplementaryEstimator, {},
+                           "GNSS-aided attitude without a Kalman filter: tilt from GNSS acceleration, "
+                           "magnetic heading (Ibrahim & Lukyanov 2020)"),
+    "gnss_kalman": (GnssKalmanEstimator, {},
+                    "GNSS-aided attitude, five-state Kalman filter: tilt errors and gyro drifts "
+                    "(Ibrahim & Lukyanov 2020)"),
 }
 
 
@@ -105,28 +116,66 @@ def make_estimator(name: str, fs_hz: float, **params: Any) -> Estimator:
     return cls(fs_hz, cls.Params(**fixed, **params), method=name)
 
 
-def estimate_attitude(gyro, accel, mag, fs, method: str = "biso", *, q0=None,
-                      full_output: bool = False, **params: Any):
-    """Attitude of every sample from whole recordings: ``q_wb`` (N, 4), body → ENU.
+def estimate_attitude(gyro, accel=None, mag=None, fs=None, method: str = "biso", *, registers=None, asa=None,
+                      mounting=None, q0=None, full_output: bool = False, **params_and_inputs: Any):
+    """Attitude of every sample of a whole recording: ``q_wb`` (N, 4), body → ENU.
+
+    Either SI arrays::
+
+        estimate_attitude(gyro_b, accel_b, mag_b, fs, method="biso", **params)
+
+    or a raw MPU-9250 register log (``sensors.RawSamples``, e.g. ``rawlog.read_raw_csv(path).raw``
+    or ``RawSamples.from_bytes`` of a real chip)::
+
+        estimate_attitude(raw, fs=200.0, method="biso_plus", registers={"gyro_fs_sel": 0,
+                          "accel_fs_sel": 1}, asa=(176, 177, 165), mounting=q_body_chip)
 
     Parameters
     ----------
     gyro, accel, mag : (N, 3) arrays in body axes (x forward, y left, z up, right-handed):
-        rad/s, m/s² (specific force, +g up at rest), µT.
-    fs : sample rate in Hz.
+        rad/s, m/s² (specific force, +g up at rest), µT. Or ``gyro`` is a ``RawSamples`` and
+        ``accel``, ``mag`` are left out: the words are converted with ``registers`` (full
+        scales, AK8963 resolution; default the sensor model's), ``asa`` (fuse-ROM bytes;
+        default 128: none) and ``mounting`` (chip → body; default identity), the AK8963 axis
+        mapping applied, and the sensor flags the words show (saturation, AK8963 overflow,
+        no data yet) passed as ``imu_flags`` (``rawlog``).
+    fs : sample rate in Hz (required).
     method : an estimator name (``estimator_names()``).
     q0 : optional initial attitude (w, x, y, z) at the first sample; default: from the
         first valid accelerometer + magnetometer sample.
-    full_output : return the ``Estimate`` (q_wb, flags, gyro_bias_b) instead of q_wb.
-    **params : the estimator's parameters (``describe_estimator(method)``).
+    full_output : return the ``Estimate`` (q_wb, per-sample flags, gyro_bias_b) instead of q_wb.
+    **params_and_inputs : the estimator's parameters (``describe_estimator(method)``) and its
+        optional per-sample inputs (``estimator_inputs(method)``: ``imu_flags``,
+        ``speed_mps``, ...), told apart by name.
 
     NaN/inf samples follow the estimator's documented policy (flags say what happened);
-    the output has no NaN. Wrong shapes raise ``ValueError``.
+    the output has no NaN. Wrong shapes raise ``ValueError``; misplaced arguments ``TypeError``.
     """
-    est = make_estimator(method, fs, **params)
+    from biso_cosim.estimators.rawlog import raw_inputs
+    from biso_cosim.sensors import RawSamples
+
+    if fs is None:
+        raise TypeError("estimate_attitude needs the sample rate fs (Hz)")
+    cls = _entry(method)[0]
+    inputs = {k: params_and_inputs.pop(k) for k in list(params_and_inputs) if k in cls.inputs}
+    if isinstance(gyro, RawSamples):
+        if accel is not None or mag is not None:
+            raise TypeError("with a raw log (RawSamples) as first argument, leave accel and mag out")
+        conv = raw_inputs(gyro, registers, asa, mounting)
+        gyro, accel, mag = conv.gyro_b, conv.accel_b, conv.mag_b
+        if "imu_flags" in cls.inputs:
+            extra = inputs.get("imu_flags")
+            inputs["imu_flags"] = conv.imu_flags if extra is None else conv.imu_flags | np.asarray(extra, dtype=np.int64)
+    else:
+        given = [name for name, v in (("registers", registers), ("asa", asa), ("mounting", mounting)) if v is not None]
+        if given:
+            raise TypeError(f"{', '.join(given)} apply to raw logs (RawSamples) only; SI arrays are in body axes")
+        if accel is None or mag is None:
+            raise TypeError("estimate_attitude needs gyro, accel and mag arrays (or a RawSamples raw log)")
+    est = make_estimator(method, fs, **params_and_inputs)
     if q0 is not None:
         est.reset(q0=q0)
-    out = est.update(gyro, accel, mag)
+    out = est.update(gyro, accel, mag, **inputs)
     return out if full_output else out.q_wb
 
 

@@ -18,7 +18,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 __all__ = ["Estimate", "State", "Estimator", "param", "param_table", "param_markdown", "as_samples",
-           "layout_offsets"]
+           "as_series", "as_imu_flags", "layout_offsets", "gyro_range_param", "accel_range_param",
+           "saturation_limits", "INPUTS"]
 
 
 # --------------------------------------------------------------------------------------
@@ -80,6 +81,35 @@ def layout_offsets(parts: tuple[tuple[str, int], ...]) -> dict[str, int]:
         i += size
     out["_size"] = i
     return out
+
+
+def gyro_range_param() -> Any:
+    """The ``gyro_range_rad_s`` field every estimator's parameters carry (one documentation)."""
+    return param(None, symbol="FS_g", unit="rad/s",
+                 doc="gyro full scale: an axis at ≥ 99.9 % of it is flagged SATURATED (the sample is "
+                     "still used); None = no check (the input imu_flags can flag saturation instead)",
+                 source="PS-MPU-9250A-01 §3.1 (±250…±2000 °/s)")
+
+
+def accel_range_param() -> Any:
+    """The ``accel_range_mps2`` field every estimator's parameters carry (one documentation)."""
+    return param(None, symbol="FS_a", unit="m/s²",
+                 doc="accelerometer full scale: an axis at ≥ 99.9 % of it is flagged SATURATED and the "
+                     "sample is not used for correction; None = no check",
+                 source="PS-MPU-9250A-01 §3.2 (±2…±16 g)")
+
+
+def saturation_limits(params: Any) -> tuple[float, float]:
+    """(gyro, accel) limits the kernels compare each axis with: 99.9 % of the declared full
+    scales, inf where none is declared (raises ValueError naming a bad value)."""
+    from biso_cosim.estimators._kernels import SATURATION_FRACTION
+
+    out = []
+    for name in ("gyro_range_rad_s", "accel_range_mps2"):
+        value = getattr(params, name)
+        out.append(math.inf if value is None else
+                   SATURATION_FRACTION * check_finite(name, value, low=0.0, low_open=True))
+    return out[0], out[1]
 
 
 # --------------------------------------------------------------------------------------
@@ -175,6 +205,52 @@ def as_series(name: str, value: Any, k: int) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
+def as_imu_flags(name: str, value: Any, k: int) -> np.ndarray:
+    """Per-sample sensor flag bits of shape (k,), as int64: integers, booleans, or floats that
+    are whole numbers (as read from a CSV), all in [0, 2³¹)."""
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an array of integers, got {type(value).__name__}") from None
+    if a.shape != (k,):
+        raise ValueError(f"{name} must have shape ({k},) like the samples, got {a.shape}")
+    if a.dtype.kind == "f":
+        if not np.all(np.isfinite(a)) or not np.all(a == np.round(a)):
+            raise ValueError(f"{name} must hold whole numbers (flag bits), got non-integral values")
+    elif a.dtype.kind not in "biu":
+        raise TypeError(f"{name} must be an array of integers (flag bits), got dtype {a.dtype}")
+    if a.size and (a.min() < 0 or a.max() >= 2 ** 31):
+        raise ValueError(f"{name} must hold flag bits in [0, 2**31), got values from {a.min()} to {a.max()}")
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+def _as_series_input(name: str, value: Any, k: int) -> np.ndarray:
+    return as_series(name, value, k)
+
+
+def _as_rows_input(name: str, value: Any, k: int) -> np.ndarray:
+    a = _as_rows(name, value, 3)
+    if a.shape[0] != k:
+        raise ValueError(f"{name} must have shape ({k}, 3) like the samples, got {a.shape}")
+    return a
+
+
+INPUTS: dict[str, tuple[Any, Any]] = {
+    "imu_flags": (as_imu_flags, lambda: np.empty(0, dtype=np.int64)),
+    "speed_mps": (_as_series_input, lambda: np.empty(0)),
+    "velocity_enu_mps": (_as_rows_input, lambda: np.empty((0, 3))),
+}
+"""The optional per-sample inputs an estimator may list in ``inputs``: name → (checking
+function(name, value, k) → array, the empty array the kernel gets when it is not given).
+
+* ``imu_flags`` (k,) int: the sensor's flag bits per sample (``biso_cosim.sensors.ImuFlag``:
+  gyro / accelerometer saturated, AK8963 overflow, magnetometer data invalid), e.g.
+  ``ImuSamples.flags`` or the ``imu_flags`` column of a run's log;
+* ``speed_mps`` (k,) float: forward speed of the vehicle (wheel odometry or GNSS), NaN = unknown;
+* ``velocity_enu_mps`` (k, 3) float: velocity over the ground in ENU (for the transport rate).
+"""
+
+
 def as_quaternion(name: str, value: Any) -> np.ndarray:
     """A finite non-zero (4,) quaternion, normalised."""
     try:
@@ -199,8 +275,9 @@ class Estimator:
 
     Subclasses set ``method``, ``Params``, ``state_layout`` and implement
     ``_coefficients(params, fs_hz) -> np.ndarray``, ``_initial_state(q0) -> np.ndarray`` and
-    ``_run(coef, state, gyro, accel, mag, extra, q_out, flags_out, bias_out)``.
-    Optional per-sample inputs (e.g. ``speed_mps``) are listed in ``inputs``.
+    ``_run(coef, state, gyro, accel, mag, extra, q_out, flags_out, bias_out)``, where
+    ``extra`` maps each name of ``inputs`` (optional per-sample inputs, ``INPUTS``) to its
+    checked array, or to an empty one when it was not given.
     """
 
     method: ClassVar[str]
@@ -282,10 +359,13 @@ class Estimator:
 
     def update(self, gyro_b: Any, accel_b: Any, mag_b: Any, **inputs: Any) -> Estimate:
         """Process k samples: gyro (rad/s), accelerometer (m/s²), magnetometer (µT), each
-        (k, 3) in body axes at ``fs_hz``. Returns the attitude after each sample.
+        (k, 3) in body axes at ``fs_hz``, and the optional per-sample inputs this estimator
+        lists in ``inputs`` (``INPUTS``: ``imu_flags``, ``speed_mps``, ...). Returns the
+        attitude after each sample.
 
         NaN/inf samples are not errors: see the estimator's policy and the flags. Wrong
-        shapes or types raise before anything changes.
+        shapes or types, or an input the estimator does not take, raise before anything
+        changes.
         """
         gyro, accel, mag = as_samples(("gyro_b", gyro_b), ("accel_b", accel_b), ("mag_b", mag_b))
         k = gyro.shape[0]
@@ -296,12 +376,19 @@ class Estimator:
         self._run(self._coef, self._state, gyro, accel, mag, extra, q_out, flags, bias)
         return Estimate(q_out, flags, bias if self.estimates_bias else None)
 
-    def _extra_inputs(self, inputs: dict[str, Any], k: int) -> np.ndarray:
+    def _extra_inputs(self, inputs: dict[str, Any], k: int) -> dict[str, np.ndarray]:
+        """Check the optional inputs (raises before anything changes): name → array."""
         unknown = sorted(set(inputs) - set(self.inputs))
         if unknown:
             known = list(self.inputs) or "none"
             raise TypeError(f"{self.method} does not take input(s) {unknown}; optional inputs: {known}")
-        return np.empty((0, 0))
+        out = {}
+        for name in self.inputs:
+            if name in INPUTS:
+                check, empty = INPUTS[name]
+                value = inputs.get(name)
+                out[name] = empty() if value is None else check(name, value, k)
+        return out
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(fs_hz={self.fs_hz!r}, params={self._params!r})"

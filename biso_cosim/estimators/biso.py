@@ -66,19 +66,17 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.estimators import flags as fl
-from biso_cosim.estimators._base import Estimator, check_finite, param
-from biso_cosim.estimators.reference import (
-    MAX_ACCEL,
-    MAX_MAG,
-    MAX_RATE,
-    MIN_ACCEL,
-    MIN_MAG,
-    REFERENCE_METHODS,
-    _mag_usable,
-    _reference,
-    _vec_norm_ok,
-    _vec_ok,
+from biso_cosim.estimators._base import (
+    Estimator,
+    accel_range_param,
+    check_finite,
+    gyro_range_param,
+    layout_offsets,
+    param,
+    saturation_limits,
 )
+from biso_cosim.estimators._kernels import _input_checks, _qexp_fast
+from biso_cosim.estimators.reference import REFERENCE_METHODS, _reference
 from biso_cosim.frames import Q_FLU_FUR, Q_NUE_ENU, _qexp_rotvec, _qmul
 
 __all__ = [
@@ -89,7 +87,10 @@ __all__ = [
     "gains_from_cutoff",
     "correction_matrix",
     "stability",
+    "geographic_rate",
     "EARTH_RATE",
+    "WGS84_A",
+    "WGS84_E2",
 ]
 
 PAPER_K = 44.4
@@ -98,6 +99,10 @@ PAPER_K_P = 25.64
 """Cross-link gain k_p of the paper's car test, 1/s."""
 EARTH_RATE = 7.292115e-5
 """Earth's rotation rate Ω, rad/s (WGS-84)."""
+WGS84_A = 6378137.0
+"""Semi-major axis of the WGS-84 ellipsoid, m."""
+WGS84_E2 = 6.69437999014e-3
+"""First eccentricity squared of the WGS-84 ellipsoid."""
 
 # Sign patterns of the cross-link matrix k_p of eq. (8): entry (i, j) multiplies k_pj.
 # (12): eq. (9) as printed; (13): the alternative whose characteristic matrix the paper
@@ -166,14 +171,21 @@ class BisoParams:
         source="eq. (5)")
     latitude_rad: float | None = param(
         None, symbol="φ", unit="rad",
-        doc="latitude for the Earth-rate term −½ω_g∘λ, ω_g = Ω(0, cos φ, sin φ) in ENU; "
-            "None = no Earth rate",
+        doc="latitude for the term −½ω_g∘λ: Earth rate Ω(0, cos φ, sin φ) in ENU, plus the transport "
+            "rate when the input velocity_enu_mps is given; None = no ω_g term (geographic frame "
+            "taken as inertial)",
+        source="eq. (1)")
+    altitude_m: float = param(
+        0.0, symbol="h", unit="m",
+        doc="height above the WGS-84 ellipsoid, for the radii of curvature in the transport rate",
         source="eq. (1)")
     stability_rate_rad_s: float = param(
         5.0, symbol="|ω|max", unit="rad/s",
         doc="largest body rate at which non-equal gains or pattern 13 must keep all "
             "frozen-rate poles in the left half-plane (checked when the parameters are set)",
         source="Hurwitz analysis after eq. (13) (±4–5 rad/s in the paper)")
+    gyro_range_rad_s: float | None = gyro_range_param()
+    accel_range_mps2: float | None = accel_range_param()
 
 
 def gains_from_cutoff(cutoff_hz: float, reading: str = "D") -> tuple[float, float]:
@@ -259,19 +271,54 @@ def stability(params: BisoParams, rates_rad_s: np.ndarray | None = None) -> dict
     }
 
 
+def _radii(latitude_rad: float, altitude_m: float) -> tuple[float, float]:
+    """(R_M + h, R_N + h): meridian and prime-vertical radii of curvature of WGS-84 plus height."""
+    s2 = math.sin(latitude_rad) ** 2
+    w = 1.0 - WGS84_E2 * s2
+    return WGS84_A * (1.0 - WGS84_E2) / w ** 1.5 + altitude_m, WGS84_A / math.sqrt(w) + altitude_m
+
+
+def geographic_rate(latitude_rad: float, velocity_enu_mps: Any = (0.0, 0.0, 0.0), altitude_m: float = 0.0) -> np.ndarray:
+    """ω_g in ENU (rad/s): rate of the geographic frame, Earth rate plus transport rate,
+
+    ``Ω(0, cos φ, sin φ) + (−v_N/(R_M + h), v_E/(R_N + h), v_E tan φ/(R_N + h))``
+
+    with R_M, R_N the meridian and prime-vertical radii of WGS-84. ``velocity_enu_mps`` may be
+    (3,) or (k, 3) (then the result is (k, 3)).
+    """
+    v = np.asarray(velocity_enu_mps, dtype=np.float64)
+    rm, rn = _radii(latitude_rad, altitude_m)
+    earth = EARTH_RATE * np.array([0.0, math.cos(latitude_rad), math.sin(latitude_rad)])
+    transport = np.stack([-v[..., 1] / rm, v[..., 0] / rn, v[..., 0] * math.tan(latitude_rad) / rn], axis=-1)
+    return earth + transport
+
+
 # --------------------------------------------------------------------------------------
 # Coefficients (flat array read by the kernel)
 # --------------------------------------------------------------------------------------
 
 MODE_NONE, MODE_CLOSED, MODE_GENERAL = 0, 1, 2
 
-_C_MODE, _C_H, _C_REF, _C_DECL, _C_CDH, _C_SDH, _C_NORM_E, _C_RENORM = range(8)
-_C_EA = 8  # e^{a'h}, a' = a − ½ω_g (closed mode): quaternion of norm e^{−kh}
-_C_EG = 12  # e^{−½ω_g h}: free propagation on the left (unit quaternion)
-_C_EGI = 16  # e^{+½ω_g h}: λ_k,i carried back to t_{i−1} (unit quaternion)
-_C_WG = 20  # −½ω_g in ENU (general mode)
-_C_G = 23  # G in q_wb components, 16 values row-major
-_C_SIZE = 39
+_COEF_LAYOUT = (
+    ("mode", 1), ("h", 1), ("ref", 1), ("decl", 1), ("cdh", 1), ("sdh", 1),
+    ("norm_e", 1),  # E = e^{2 g_n h} of the logistic norm flow (1: no norm term)
+    ("norm_a", 1),  # (E − 1)/E
+    ("renorm", 1),
+    ("k", 1), ("k_p", 1),  # equal gains with the reading's factor (closed mode)
+    ("ea", 4),  # e^{a'h}, a' = a − ½ω_g (closed mode, Earth rate only): quaternion of norm e^{−kh}
+    ("eg", 4),  # e^{−½ω_g h}: free propagation on the left (Earth rate only)
+    ("egi", 4),  # e^{+½ω_g h}: λ_k,i carried back to t_{i−1}
+    ("wg", 3),  # Earth rate in ENU, rad/s (0 without latitude)
+    ("g", 16),  # G in q_wb components, row-major (general mode)
+    ("geo", 1),  # 1: latitude given (ω_g term on)
+    ("inv_rm", 1), ("inv_rn", 1), ("tan_lat", 1),  # transport rate from the velocity input
+    ("gyro_limit", 1), ("accel_limit", 1),
+)
+_C = layout_offsets(_COEF_LAYOUT)
+(_C_MODE, _C_H, _C_REF, _C_DECL, _C_CDH, _C_SDH, _C_NORM_E, _C_NORM_A, _C_RENORM, _C_K, _C_KP, _C_EA, _C_EG,
+ _C_EGI, _C_WG, _C_G, _C_GEO, _C_INV_RM, _C_INV_RN, _C_TAN_LAT, _C_GLIM, _C_ALIM) = (
+    _C[name] for name, _ in _COEF_LAYOUT)
+_C_SIZE = _C["_size"]
 
 
 def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
@@ -282,7 +329,9 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
         raise ValueError(f"reference must be one of {REFERENCE_METHODS}, got {params.reference!r}")
     decl = check_finite("declination_rad", params.declination_rad)
     norm_gain = check_finite("norm_gain", params.norm_gain, low=0.0)
+    altitude = check_finite("altitude_m", params.altitude_m, low=-1.0e4, high=1.0e6)
     check_finite("stability_rate_rad_s", params.stability_rate_rad_s, low=0.0)
+    glim, alim = saturation_limits(params)
     g_gost = correction_matrix(params)
     k, kp = _resolved_gains(params)
     h = 1.0 / fs_hz
@@ -307,33 +356,46 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
                 f"(paper axes) a pole has real part {st['max_real_rotating']:.4g} >= 0 "
                 f"(checked up to stability_rate_rad_s = {params.stability_rate_rad_s})")
 
+    c = np.zeros(_C_SIZE)
     wg = np.zeros(3)
     if params.latitude_rad is not None:
         lat = check_finite("latitude_rad", params.latitude_rad, low=-0.5 * math.pi, high=0.5 * math.pi)
-        wg = EARTH_RATE * np.array([0.0, math.cos(lat), math.sin(lat)])
+        if abs(lat) > math.radians(89.9):
+            raise ValueError(f"latitude_rad must be within ±89.9° (the transport rate has tan φ), got {lat!r}")
+        wg = geographic_rate(lat)
+        rm, rn = _radii(lat, altitude)
+        c[_C_GEO], c[_C_INV_RM], c[_C_INV_RN], c[_C_TAN_LAT] = 1.0, 1.0 / rm, 1.0 / rn, math.tan(lat)
 
     scale = 0.5 if params.reading == "L" else 1.0
-    c = np.zeros(_C_SIZE)
     c[_C_MODE], c[_C_H] = mode, h
     c[_C_REF] = REFERENCE_METHODS.index(params.reference)
     c[_C_DECL], c[_C_CDH], c[_C_SDH] = decl, math.cos(0.5 * decl), math.sin(0.5 * decl)
-    c[_C_NORM_E] = 1.0 if params.renormalize else math.exp(2.0 * scale * norm_gain * h)
+    e = 1.0 if params.renormalize else math.exp(2.0 * scale * norm_gain * h)
+    c[_C_NORM_E], c[_C_NORM_A] = e, (e - 1.0) / e
     c[_C_RENORM] = float(bool(params.renormalize))
+    c[_C_K], c[_C_KP] = scale * k[0], scale * kp[0]
     c[_C_EG:_C_EG + 4] = _qexp_rotvec(*(-wg * h))
     c[_C_EGI:_C_EGI + 4] = _qexp_rotvec(*(wg * h))
-    c[_C_WG:_C_WG + 3] = -0.5 * wg
+    c[_C_WG:_C_WG + 3] = wg
     c[_C_G:_C_G + 16] = (_T_GOST.T @ g_gost @ _T_GOST).ravel()
+    c[_C_GLIM], c[_C_ALIM] = glim, alim
     if mode == MODE_CLOSED:
-        # a = (−k, k_p, k_p, k_p); e^{a'h} = e^{−kh} (cos|v|h, sin|v|h v/|v|), v = a_v − ½ω_g
-        kk, kpp = scale * k[0], scale * kp[0]
-        v = np.array([kpp, kpp, kpp]) - 0.5 * wg
-        c[_C_EA:_C_EA + 4] = math.exp(-kk * h) * np.array(_qexp_rotvec(*(2.0 * v * h)))
+        c[_C_EA:_C_EA + 4] = _closed_transition(c[_C_K], c[_C_KP], wg[0], wg[1], wg[2], h)
     return c
 
 
 # --------------------------------------------------------------------------------------
 # Kernels
 # --------------------------------------------------------------------------------------
+
+
+@jit(inline="always")
+def _closed_transition(k, kp, wgx, wgy, wgz, h):
+    """e^{a'h} for a = (−k, k_p, k_p, k_p), a' = a − ½ω_g (left multiplication):
+    e^{−kh} (cos|v|h, sin|v|h v/|v|) with v = k_p(1, 1, 1) − ½ω_g."""
+    d = math.exp(-k * h)
+    q = _qexp_rotvec(2.0 * h * (kp - 0.5 * wgx), 2.0 * h * (kp - 0.5 * wgy), 2.0 * h * (kp - 0.5 * wgz))
+    return d * q[0], d * q[1], d * q[2], d * q[3]
 
 
 @jit
@@ -360,13 +422,13 @@ def _expm_small(z):
 
 
 @jit
-def _error_transition(c, bx, by, bz):
+def _error_transition(c, wgx, wgy, wgz, bx, by, bz):
     """Φ = exp(h(G − ½L(ω_g) + R(b))) for the general mode (4×4)."""
     z = np.empty((4, 4))
     for i in range(4):
         for j in range(4):
             z[i, j] = c[_C_G + 4 * i + j]
-    gx, gy, gz = c[_C_WG], c[_C_WG + 1], c[_C_WG + 2]
+    gx, gy, gz = -0.5 * wgx, -0.5 * wgy, -0.5 * wgz
     lm = ((0.0, -gx, -gy, -gz), (gx, 0.0, -gz, gy), (gy, gz, 0.0, -gx), (gz, -gy, gx, 0.0))
     rm = ((0.0, -bx, -by, -bz), (bx, 0.0, bz, -by), (by, -bz, 0.0, bx), (bz, by, -bx, 0.0))
     for i in range(4):
@@ -375,168 +437,176 @@ def _error_transition(c, bx, by, bz):
     return _expm_small(z)
 
 
-@jit
-def _qexp_fast(rx, ry, rz):
-    """e^{(0, r)/2}: the rotation by |r| about r. For |r| ≤ 0.1 rad (every gyro step below
-    20 rad/s at 200 Hz) a Taylor series to the 8th power is exact to rounding (next terms
-    < 3e-20) and needs no trigonometry; beyond, sin and cos."""
-    t2 = rx * rx + ry * ry + rz * rz
-    if t2 <= 0.01:
-        x = 0.25 * t2  # (|r|/2)²
-        c = 1.0 - x / 2.0 * (1.0 - x / 12.0 * (1.0 - x / 30.0 * (1.0 - x / 56.0)))
-        s = 0.5 * (1.0 - x / 6.0 * (1.0 - x / 20.0 * (1.0 - x / 42.0 * (1.0 - x / 72.0))))
-        return c, s * rx, s * ry, s * rz
-    return _qexp_rotvec(rx, ry, rz)
+# (1 − y)^{−½} = Σ c_k y^k, c_k = (2k)!/(4^k k!²)
+_R1, _R2, _R3, _R4 = 0.5, 0.375, 0.3125, 0.2734375
+_R5, _R6, _R7, _R8 = 0.24609375, 0.2255859375, 0.20947265625, 0.196380615234375
 
 
-@jit
-def _biso_propagate(c, mode, correct, lw, lx, ly, lz, kw, kx, ky, kz, gx, gy, gz):
-    """One step of the linear part (see the module docstring); λ_k = (kw, …) when ``correct``."""
-    h = c[_C_H]
-    eb = _qexp_fast(gx * h, gy * h, gz * h)  # e^{bh}, b = ½ω
-    p = _qmul(lw, lx, ly, lz, eb[0], eb[1], eb[2], eb[3])  # λ_{i−1}∘e^{bh}
-    if not correct:
-        if c[_C_EG] == 1.0:
-            return p
-        return _qmul(c[_C_EG], c[_C_EG + 1], c[_C_EG + 2], c[_C_EG + 3], p[0], p[1], p[2], p[3])
-    if c[_C_EGI] == 1.0:  # no Earth rate: e^{½ω_g h} = 1
-        r = (kw, kx, ky, kz)
-    else:
-        r = _qmul(c[_C_EGI], c[_C_EGI + 1], c[_C_EGI + 2], c[_C_EGI + 3], kw, kx, ky, kz)
-    if mode == MODE_CLOSED:
-        d = _qmul(c[_C_EA], c[_C_EA + 1], c[_C_EA + 2], c[_C_EA + 3],
-                  p[0] - r[0], p[1] - r[1], p[2] - r[2], p[3] - r[3])
-        return kw + d[0], kx + d[1], ky + d[2], kz + d[3]
-    # general: e_{i−1} = λ_{i−1} − e^{½ω_g h}∘λ_k,i∘e^{−bh}; λ_i = λ_k,i + Φ e_{i−1}
-    q = _qmul(r[0], r[1], r[2], r[3], eb[0], -eb[1], -eb[2], -eb[3])
-    e0, e1, e2, e3 = lw - q[0], lx - q[1], ly - q[2], lz - q[3]
-    phi = _error_transition(c, 0.5 * gx, 0.5 * gy, 0.5 * gz)
-    return (kw + phi[0, 0] * e0 + phi[0, 1] * e1 + phi[0, 2] * e2 + phi[0, 3] * e3,
-            kx + phi[1, 0] * e0 + phi[1, 1] * e1 + phi[1, 2] * e2 + phi[1, 3] * e3,
-            ky + phi[2, 0] * e0 + phi[2, 1] * e1 + phi[2, 2] * e2 + phi[2, 3] * e3,
-            kz + phi[3, 0] * e0 + phi[3, 1] * e1 + phi[3, 2] * e2 + phi[3, 3] * e3)
+@jit(inline="always")
+def _inv_sqrt_1m(y):
+    """(1 − y)^{−½}; for |y| < 0.01 (|λ| within 0.5 % of 1: the norm of λ wanders by a few
+    1e-3 with a noisy λ_k and the cross-link) the series to y⁸ (dropped terms below 2e-19),
+    by Estrin's scheme (a short chain of dependent operations); beyond, 1/√(1 − y)."""
+    if abs(y) < 0.01:
+        y2 = y * y
+        y4 = y2 * y2
+        return (((1.0 + _R1 * y) + y2 * (_R2 + _R3 * y))
+                + y4 * ((_R4 + _R5 * y) + y2 * (_R6 + _R7 * y) + y4 * _R8))
+    return 1.0 / math.sqrt(1.0 - y)
 
 
-@jit
-def _norm_substep(c, lw, lx, ly, lz):
-    """Exact flow of λ̇ = g_n λ(1 − |λ|²) over h, or division by |λ| when renormalising."""
+@jit(inline="always")
+def _norm_flow(e, a, lw, lx, ly, lz):
+    """Exact flow over h of λ̇ = g_n λ(1 − |λ|²): λ·f with f² = E/(1 + |λ|²(E − 1)).
+
+    With y = a(1 − |λ|²), a = (E − 1)/E, this is f = (1 − y)^{−½}: a series near |λ| = 1 (no
+    division or square root on the recursion's chain), the formula itself far from it."""
     n2 = lw * lw + lx * lx + ly * ly + lz * lz
-    if c[_C_RENORM] != 0.0:
-        f = 1.0 / math.sqrt(n2)
-    else:
-        e = c[_C_NORM_E]
-        if e == 1.0:
-            return lw, lx, ly, lz
-        # f² = E/(1 + |λ|²(E − 1)) = 1 + x; near |λ| = 1 a series replaces the square root
-        x = (e - 1.0) * (1.0 - n2) / (1.0 + n2 * (e - 1.0))
-        f = 1.0 + 0.5 * x - 0.125 * x * x if abs(x) < 1e-6 else math.sqrt(1.0 + x)
+    y = a * (1.0 - n2)
+    f = _inv_sqrt_1m(y) if abs(y) < 0.01 else math.sqrt(e / (1.0 + n2 * (e - 1.0)))
+    return lw * f, lx * f, ly * f, lz * f
+
+
+@jit(inline="always")
+def _unit_output(lw, lx, ly, lz):
+    """λ/|λ| (series of (1 + z)^{−½}, z = |λ|² − 1, near |λ| = 1)."""
+    f = _inv_sqrt_1m(1.0 - (lw * lw + lx * lx + ly * ly + lz * lz))
     return lw * f, lx * f, ly * f, lz * f
 
 
 # state layout: initialised (0 = no, 1 = running, 2 = q0 given, waiting for the first sample),
 # λ (4), last valid gyro sample (3)
-_S_INIT, _S_LAM, _S_GYRO = 0, 1, 5
-_S_SIZE = 8
 STATE_LAYOUT = (("initialized", 1), ("lam", 4), ("gyro_hold", 3))
+_S = layout_offsets(STATE_LAYOUT)
+_S_INIT, _S_LAM, _S_GYRO = _S["initialized"], _S["lam"], _S["gyro_hold"]
+_S_SIZE = _S["_size"]
 
 
-@jit
-def _input_checks(st, g_idx, gx, gy, gz, ax, ay, az, mx, my, mz):
-    """Validity of one sample; replaces an invalid gyro by the held one (st[g_idx:g_idx+3])."""
-    flags = 0
-    if _vec_ok(gx, gy, gz, 0.0, MAX_RATE) or (gx == 0.0 and gy == 0.0 and gz == 0.0):
-        st[g_idx], st[g_idx + 1], st[g_idx + 2] = gx, gy, gz
-    else:
-        gx, gy, gz = st[g_idx], st[g_idx + 1], st[g_idx + 2]
-        flags |= fl.GYRO_INVALID
-    acc_ok, fn = _vec_norm_ok(ax, ay, az, MIN_ACCEL, MAX_ACCEL)
-    mag_ok = False
-    if acc_ok:
-        mag_ok = _vec_ok(mx, my, mz, MIN_MAG, MAX_MAG) and _mag_usable(ax, ay, az, mx, my, mz)
-    else:
-        flags |= fl.ACCEL_INVALID
-    if not mag_ok:
-        flags |= fl.MAG_INVALID
-    return flags, gx, gy, gz, acc_ok, fn, mag_ok
+_BLOCK = 64  # samples per block of the two passes of _biso_batch
+# scratch columns per sample of a block: e^{bh} (4), λ_k (4), |f|², what is usable (0 nothing,
+# 1 the accelerometer, 2 λ_k is ready), the gyro sample used (3), the flags
+_BUF_COLS = 14
 
 
-@jit(inline="always")
-def _biso_step_impl(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, ref_method):
-    """Advance the state by one sample; returns the sample's flags. Never raises.
+@jit(error_model="numpy")
+def _biso_batch(c, st, gyro, accel, mag, imu_flags, vel, q_out, flags_out, buf):
+    """Advance the state over every row (the batch and the streaming paths are this loop).
 
-    ``ref_method`` is a compile-time constant in the callers below (inlined), so the unused
-    λ_k construction is compiled out (a runtime switch costs about 30 ns per sample)."""
-    flags, gx, gy, gz, acc_ok, fn, mag_ok = _input_checks(st, _S_GYRO, gx, gy, gz, ax, ay, az, mx, my, mz)
-    lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
+    ``imu_flags`` (k,) and ``vel`` (k, 3) are empty when not given; ``buf`` is scratch space
+    of shape (_BLOCK, _BUF_COLS) (kept by the estimator: no allocation per call). Nothing
+    raises.
+
+    Samples go in blocks of _BLOCK, each in two passes with the same arithmetic as one
+    pass: first what does not depend on the estimate (input checks, e^{bh}, λ_k from the
+    accelerometer and a usable field), which the processor overlaps across samples; then
+    the recursion itself, whose chain of dependent operations sets the speed. The state is
+    held in local variables and written back at the end."""
+    n = gyro.shape[0]
+    has_flags = imu_flags.shape[0] == n
+    has_vel = vel.shape[0] == n and c[_C_GEO] != 0.0
     mode = int(c[_C_MODE])
+    ref = int(c[_C_REF])
+    h = c[_C_H]
+    decl, cdh, sdh = c[_C_DECL], c[_C_CDH], c[_C_SDH]
+    norm_e, norm_a, renorm = c[_C_NORM_E], c[_C_NORM_A], c[_C_RENORM] != 0.0
+    glim, alim = c[_C_GLIM], c[_C_ALIM]
+    geo = c[_C_GEO] != 0.0
+    ea0, ea1, ea2, ea3 = c[_C_EA], c[_C_EA + 1], c[_C_EA + 2], c[_C_EA + 3]
+    eg0, eg1, eg2, eg3 = c[_C_EG], c[_C_EG + 1], c[_C_EG + 2], c[_C_EG + 3]
+    ei0, ei1, ei2, ei3 = c[_C_EGI], c[_C_EGI + 1], c[_C_EGI + 2], c[_C_EGI + 3]
+    wgx, wgy, wgz = c[_C_WG], c[_C_WG + 1], c[_C_WG + 2]
     init = st[_S_INIT]
-    if init == 2.0:  # q0 from reset(): it is the attitude at this first sample
-        st[_S_INIT] = 1.0
-        return flags
-    correct = acc_ok and mode != MODE_NONE
-    kw, kx, ky, kz = 1.0, 0.0, 0.0, 0.0
-    if init == 0.0 or correct:
-        if not acc_ok:  # nothing to initialise from yet
-            return flags | fl.UNINITIALIZED
-        # without a usable field, λ_k keeps the heading of the gyro-propagated estimate
-        hw, hx, hy, hz = lw, lx, ly, lz
-        if not mag_ok and init != 0.0:
-            h = c[_C_H]
-            eb = _qexp_rotvec(gx * h, gy * h, gz * h)
-            hw, hx, hy, hz = _qmul(lw, lx, ly, lz, eb[0], eb[1], eb[2], eb[3])
-        kw, kx, ky, kz = _reference(ref_method, ax, ay, az, fn, mx, my, mz, mag_ok,
-                                    hw, hx, hy, hz, c[_C_DECL], c[_C_CDH], c[_C_SDH])
-        if init == 0.0:  # eq. (7): the first valid sample sets the attitude
-            st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = kw, kx, ky, kz
-            st[_S_INIT] = 1.0
-            return flags
-        if kw * lw + kx * lx + ky * ly + kz * lz < 0.0:  # same hemisphere as λ
-            kw, kx, ky, kz = -kw, -kx, -ky, -kz
-    lam = _biso_propagate(c, mode, correct, lw, lx, ly, lz, kw, kx, ky, kz, gx, gy, gz)
-    lam = _norm_substep(c, lam[0], lam[1], lam[2], lam[3])
-    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = lam
-    return flags
-
-
-@jit
-def _biso_step_vector(c, st, gx, gy, gz, ax, ay, az, mx, my, mz):
-    return _biso_step_impl(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, 0)
-
-
-@jit
-def _biso_step_euler(c, st, gx, gy, gz, ax, ay, az, mx, my, mz):
-    return _biso_step_impl(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, 1)
-
-
-@jit
-def _biso_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz):
-    """One sample (for callers that step sample by sample, e.g. an FMU): flags."""
-    if c[_C_REF] == 0.0:
-        return _biso_step_vector(c, st, gx, gy, gz, ax, ay, az, mx, my, mz)
-    return _biso_step_euler(c, st, gx, gy, gz, ax, ay, az, mx, my, mz)
-
-
-@jit
-def _write_output(st, i, q_out):
-    """q_out[i] = λ/|λ| (the identity before initialisation, as λ is then)."""
     lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
-    n = 1.0 / math.sqrt(lw * lw + lx * lx + ly * ly + lz * lz)
-    q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = lw * n, lx * n, ly * n, lz * n
-
-
-@jit
-def _biso_batch(c, st, gyro, accel, mag, q_out, flags_out):
-    """The per-sample step over every row (the batch and streaming paths are this loop)."""
-    if c[_C_REF] == 0.0:
-        for i in range(gyro.shape[0]):
-            flags_out[i] = _biso_step_vector(c, st, gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
-                                             accel[i, 2], mag[i, 0], mag[i, 1], mag[i, 2])
-            _write_output(st, i, q_out)
-    else:
-        for i in range(gyro.shape[0]):
-            flags_out[i] = _biso_step_euler(c, st, gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
-                                            accel[i, 2], mag[i, 0], mag[i, 1], mag[i, 2])
-            _write_output(st, i, q_out)
+    hx, hy, hz = st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2]
+    for start in range(0, n, _BLOCK):
+        stop = min(start + _BLOCK, n)
+        need_ref = mode != MODE_NONE or init != 1.0
+        for i in range(start, stop):
+            j = i - start
+            sf = imu_flags[i] if has_flags else 0
+            ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2]
+            mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
+            flags, gx, gy, gz, acc_ok, f2, mag_ok, ex, ey, ez, e2 = _input_checks(
+                gyro[i, 0], gyro[i, 1], gyro[i, 2], ax, ay, az, mx, my, mz, hx, hy, hz, sf, glim, alim)
+            hx, hy, hz = gx, gy, gz
+            buf[j, 13] = flags
+            buf[j, 0], buf[j, 1], buf[j, 2], buf[j, 3] = _qexp_fast(gx * h, gy * h, gz * h)  # e^{bh}, b = ½ω
+            buf[j, 8] = f2
+            buf[j, 9] = 0.0
+            buf[j, 10], buf[j, 11], buf[j, 12] = gx, gy, gz
+            if acc_ok:
+                buf[j, 9] = 1.0
+                if mag_ok and need_ref:
+                    buf[j, 4], buf[j, 5], buf[j, 6], buf[j, 7] = _reference(
+                        ref, ax, ay, az, f2, ex, ey, ez, e2, mx, my, mz, True, 1.0, 0.0, 0.0, 0.0, decl, cdh, sdh)
+                    buf[j, 9] = 2.0
+        for i in range(start, stop):
+            j = i - start
+            flags = int(buf[j, 13])
+            usable = buf[j, 9]
+            kw, kx, ky, kz = buf[j, 4], buf[j, 5], buf[j, 6], buf[j, 7]
+            if init == 1.0:
+                if has_vel:  # ω_g with the transport rate of this sample's velocity (unknown: 0)
+                    ve, vn = vel[i, 0], vel[i, 1]
+                    if not (math.isfinite(ve) and math.isfinite(vn)):
+                        ve = vn = 0.0
+                    wgx = c[_C_WG] - vn * c[_C_INV_RM]
+                    wgy = c[_C_WG + 1] + ve * c[_C_INV_RN]
+                    wgz = c[_C_WG + 2] + ve * c[_C_TAN_LAT] * c[_C_INV_RN]
+                    ei0, ei1, ei2, ei3 = _qexp_fast(wgx * h, wgy * h, wgz * h)
+                    eg0, eg1, eg2, eg3 = ei0, -ei1, -ei2, -ei3
+                    if mode == MODE_CLOSED:
+                        ea0, ea1, ea2, ea3 = _closed_transition(c[_C_K], c[_C_KP], wgx, wgy, wgz, h)
+                eb0, eb1, eb2, eb3 = buf[j, 0], buf[j, 1], buf[j, 2], buf[j, 3]
+                pw, px, py, pz = _qmul(lw, lx, ly, lz, eb0, eb1, eb2, eb3)  # λ_{i−1}∘e^{bh}
+                if usable != 0.0 and mode != MODE_NONE:
+                    if usable == 1.0:  # no usable field: λ_k keeps the heading of the propagated estimate
+                        kw, kx, ky, kz = _reference(ref, accel[i, 0], accel[i, 1], accel[i, 2], buf[j, 8],
+                                                    0.0, 0.0, 0.0, 0.0, mag[i, 0], mag[i, 1], mag[i, 2], False,
+                                                    pw, px, py, pz, decl, cdh, sdh)
+                    if kw * lw + kx * lx + ky * ly + kz * lz < 0.0:  # same hemisphere as λ
+                        kw, kx, ky, kz = -kw, -kx, -ky, -kz
+                    rw, rx, ry, rz = kw, kx, ky, kz
+                    if geo:  # λ_k,i carried back to t_{i−1} on the left: e^{½ω_g h}∘λ_k,i
+                        rw, rx, ry, rz = _qmul(ei0, ei1, ei2, ei3, kw, kx, ky, kz)
+                    if mode == MODE_CLOSED:
+                        # λ_i = λ_k,i + e^{a'h}∘(λ_{i−1}∘e^{bh} − e^{½ω_g h}∘λ_k,i)
+                        dw, dx, dy, dz = _qmul(ea0, ea1, ea2, ea3, pw - rw, px - rx, py - ry, pz - rz)
+                        lw, lx, ly, lz = kw + dw, kx + dx, ky + dy, kz + dz
+                    else:
+                        # e_{i−1} = λ_{i−1} − e^{½ω_g h}∘λ_k,i∘e^{−bh};  λ_i = λ_k,i + Φ e_{i−1}
+                        qw, qx, qy, qz = _qmul(rw, rx, ry, rz, eb0, -eb1, -eb2, -eb3)
+                        e0, e1, e2, e3 = lw - qw, lx - qx, ly - qy, lz - qz
+                        phi = _error_transition(c, wgx, wgy, wgz, 0.5 * buf[j, 10], 0.5 * buf[j, 11], 0.5 * buf[j, 12])
+                        lw = kw + phi[0, 0] * e0 + phi[0, 1] * e1 + phi[0, 2] * e2 + phi[0, 3] * e3
+                        lx = kx + phi[1, 0] * e0 + phi[1, 1] * e1 + phi[1, 2] * e2 + phi[1, 3] * e3
+                        ly = ky + phi[2, 0] * e0 + phi[2, 1] * e1 + phi[2, 2] * e2 + phi[2, 3] * e3
+                        lz = kz + phi[3, 0] * e0 + phi[3, 1] * e1 + phi[3, 2] * e2 + phi[3, 3] * e3
+                elif geo:
+                    lw, lx, ly, lz = _qmul(eg0, eg1, eg2, eg3, pw, px, py, pz)
+                else:
+                    lw, lx, ly, lz = pw, px, py, pz
+                if renorm:
+                    f = 1.0 / math.sqrt(lw * lw + lx * lx + ly * ly + lz * lz)
+                    lw, lx, ly, lz = lw * f, lx * f, ly * f, lz * f
+                elif norm_e != 1.0:
+                    lw, lx, ly, lz = _norm_flow(norm_e, norm_a, lw, lx, ly, lz)
+            elif init == 2.0:  # q0 from reset(): it is the attitude at this first sample
+                init = 1.0
+            elif usable != 0.0:  # eq. (7): the first valid sample sets the attitude
+                if usable == 1.0:
+                    kw, kx, ky, kz = _reference(ref, accel[i, 0], accel[i, 1], accel[i, 2], buf[j, 8],
+                                                0.0, 0.0, 0.0, 0.0, mag[i, 0], mag[i, 1], mag[i, 2], False,
+                                                1.0, 0.0, 0.0, 0.0, decl, cdh, sdh)
+                lw, lx, ly, lz = kw, kx, ky, kz
+                init = 1.0
+            else:  # nothing to initialise from yet
+                flags |= fl.UNINITIALIZED
+            flags_out[i] = flags
+            q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = _unit_output(lw, lx, ly, lz)
+    st[_S_INIT] = init
+    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = lw, lx, ly, lz
+    st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = hx, hy, hz
 
 
 def biso_initial_state(q0: np.ndarray | None) -> np.ndarray:
@@ -551,11 +621,15 @@ def biso_initial_state(q0: np.ndarray | None) -> np.ndarray:
 class BisoEstimator(Estimator):
     """The faithful BISO estimator (see the module docstring). Build it with
     ``make_estimator("biso", fs_hz, **params)``; ``"positional"`` (k_p = 0) and
-    ``"poisson"`` (no correction, eq. (2)) are the same class with fixed gains."""
+    ``"poisson"`` (no correction, eq. (2)) are the same class with fixed gains.
+
+    Optional per-sample inputs: ``imu_flags`` (the sensor's flags: saturation, overflow) and
+    ``velocity_enu_mps`` (k, 3) for the transport rate (needs ``latitude_rad``)."""
 
     method = "biso"
     Params = BisoParams
     state_layout = STATE_LAYOUT
+    inputs = ("imu_flags", "velocity_enu_mps")
 
     def _coefficients(self, params: BisoParams, fs_hz: float) -> np.ndarray:
         return biso_coefficients(params, fs_hz)
@@ -563,5 +637,14 @@ class BisoEstimator(Estimator):
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)
 
+    def _extra_inputs(self, inputs: dict[str, Any], k: int) -> dict[str, np.ndarray]:
+        if inputs.get("velocity_enu_mps") is not None and self._params.latitude_rad is None:
+            raise ValueError("velocity_enu_mps gives the transport rate, which needs latitude_rad "
+                             "(set it with set_params, or leave the velocity out)")
+        return super()._extra_inputs(inputs, k)
+
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
-        _biso_batch(coef, state, gyro, accel, mag, q_out, flags)
+        if not hasattr(self, "_scratch"):
+            self._scratch = np.empty((_BLOCK, _BUF_COLS))
+        _biso_batch(coef, state, gyro, accel, mag, extra["imu_flags"], extra["velocity_enu_mps"], q_out, flags,
+                    self._scratch)

@@ -58,8 +58,16 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.estimators import flags as fl
-from biso_cosim.estimators._base import Estimator, as_series, check_finite, layout_offsets, param
-from biso_cosim.estimators.biso import _input_checks, _qexp_fast
+from biso_cosim.estimators._base import (
+    Estimator,
+    accel_range_param,
+    check_finite,
+    gyro_range_param,
+    layout_offsets,
+    param,
+    saturation_limits,
+)
+from biso_cosim.estimators._kernels import _input_checks, _qexp_fast
 from biso_cosim.estimators.reference import _ref_vector
 from biso_cosim.frames import _mat_from_q, _qmul, _qrot
 from biso_cosim.units import DEG, G0
@@ -73,9 +81,9 @@ class BisoPlusParams:
 
     # -- tilt
     tau_acc_s: float = param(
-        1.5, symbol="τ_a", unit="s",
+        3.0, symbol="τ_a", unit="s",
         doc="time constant of the low-pass of the specific force in the quasi-inertial frame I "
-            "(without a speed input)", source="VQF τ_acc (3 s there); measured")
+            "(without a speed input)", source="VQF τ_acc; measured (docs/estimators.md)")
     tau_acc_speed_s: float = param(
         1.0, symbol="τ_av", unit="s",
         doc="the same while a valid speed input compensates the vehicle's acceleration", source="measured")
@@ -88,7 +96,7 @@ class BisoPlusParams:
         source="measured")
     # -- heading
     k_heading: float = param(
-        0.2, symbol="k_h", unit="1/s",
+        0.05, symbol="k_h", unit="1/s",
         doc="positional correction gain of heading toward the magnetometer (at least 1/(t + τ_a) "
             "during the start)", source="measured")
     # -- cross-link
@@ -180,11 +188,8 @@ class BisoPlusParams:
         0.05, symbol="τ_v", unit="s", doc="low-pass of v̇ and ω̇ from differences", source="measured")
     gravity_mps2: float = param(G0, symbol="g", unit="m/s²", doc="gravity used by the gate", source="")
     # -- sensor
-    gyro_range_rad_s: float | None = param(
-        None, symbol="", unit="rad/s", doc="gyro full scale (flag SATURATED at ≥ 99.9 %); None = no check", source="")
-    accel_range_mps2: float | None = param(
-        None, symbol="", unit="m/s²",
-        doc="accelerometer full scale (flag SATURATED; the sample is not used for tilt); None = no check", source="")
+    gyro_range_rad_s: float | None = gyro_range_param()
+    accel_range_mps2: float | None = accel_range_param()
 
 
 STATE_LAYOUT = (
@@ -193,12 +198,12 @@ STATE_LAYOUT = (
     ("rest_accel_lp", 3), ("rest_time_s", 1), ("speed_prev", 1), ("dvdt", 1), ("speed_prev_ok", 1),
     ("gyro_prev", 3), ("angular_accel_lp", 3), ("mag_offset_b", 3), ("field_i", 3), ("offset_cov", 36),
     ("offset_count", 1), ("field_norm", 1), ("field_dip", 1), ("field_known", 1), ("mag_rejected_s", 1),
-    ("time_s", 1), ("offset_started", 1),
+    ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
- _S_REJ_T, _S_TIME, _S_OFF_INIT) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -208,13 +213,14 @@ _COEF_LAYOUT = (
     ("b_tol", 1), ("dip_tol", 1), ("reject_max", 1), ("a_field", 1), ("b_norm", 1), ("dip", 1),
     ("offset_on", 1), ("q_offset", 1), ("q_field", 1), ("r_mag", 1), ("offset_n", 1), ("decl", 1),
     ("cdh", 1), ("sdh", 1), ("r_v", 3), ("a_speed", 1), ("g", 1), ("gyro_range", 1), ("accel_range", 1),
-    ("offset_bias2", 1),
+    ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
  _C_BLIM, _C_REST_N, _C_A_REST, _C_REST_W, _C_REST_A, _C_REST_V, _C_BTOL, _C_DTOL, _C_REJ_N, _C_A_FIELD,
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
- _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2) = (_C[name] for name, _ in _COEF_LAYOUT)
+ _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL) = (
+    _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
 _P0_FIELD = 100.0 ** 2  # variance (µT²) of the field in I before the first magnetometer sample
@@ -281,9 +287,13 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     c[_C_RV:_C_RV + 3] = rv
     c[_C_A_SPEED] = _alpha(h, v["tau_speed_s"])
     c[_C_G] = v["gravity_mps2"]
-    for idx, name in ((_C_GRANGE, "gyro_range_rad_s"), (_C_ARANGE, "accel_range_mps2")):
-        value = getattr(p, name)
-        c[idx] = np.inf if value is None else check_finite(name, value, low=0.0, low_open=True)
+    c[_C_GRANGE], c[_C_ARANGE] = saturation_limits(p)
+    c[_C_FS] = fs_hz
+    c[_C_INV_GATE_G] = 1.0 / (c[_C_G] * c[_C_GATE])
+    if p.dip_rad is not None:
+        c[_C_DIP_C], c[_C_DIP_S] = math.cos(c[_C_DIP]), math.sin(c[_C_DIP])
+    # |δ| > θ_δ ⟺ cos δ < cos θ_δ for |δ| ≤ π (the dips lie in [−π/2, π/2]); θ_δ ≥ π: never
+    c[_C_COS_DTOL] = math.cos(c[_C_DTOL]) if c[_C_DTOL] < math.pi else -2.0
     return c
 
 
@@ -306,27 +316,48 @@ def biso_plus_initial_state(q0: np.ndarray | None, params: BisoPlusParams) -> np
 # --------------------------------------------------------------------------------------
 
 
-@jit
+_A3, _A5, _A7, _A9, _A11 = 1.0 / 3.0, 1.0 / 5.0, 1.0 / 7.0, 1.0 / 9.0, 1.0 / 11.0
+
+
+@jit(inline="always")
+def _atan_series(t2):
+    """atan(t)/t for t² ≤ 0.01 (error below 1e-12)."""
+    return 1.0 - t2 * (_A3 - t2 * (_A5 - t2 * (_A7 - t2 * (_A9 - t2 * _A11))))
+
+
+@jit(inline="always")
 def _atan2(y, x):
     """atan2 with a series for small angles (|y| ≤ 0.1 x: error below 1e-12 rad), which
     covers nearly every correction step and avoids the library call."""
     if x > 0.0 and abs(y) <= 0.1 * x:
         t = y / x
-        t2 = t * t
-        return t * (1.0 - t2 * (1.0 / 3.0 - t2 * (0.2 - t2 * (1.0 / 7.0 - t2 * (1.0 / 9.0 - t2 / 11.0)))))
+        return t * _atan_series(t * t)
     return math.atan2(y, x)
 
 
-@jit
+@jit(inline="always")
+def _angle_over_sine(s2, c):
+    """atan2(s, c)/s for s = √s2 ≥ 0 (0 at s = 0): near s = 0 (s ≤ 0.1 c) the series
+    (1/c)·atan(t)/t with t² = s2/c², one division and no square root."""
+    if c > 0.0 and s2 <= 0.01 * c * c:
+        i = 1.0 / c
+        return i * _atan_series(s2 * i * i)
+    if s2 > 0.0:
+        s = math.sqrt(s2)
+        return math.atan2(s, c) / s
+    return 0.0
+
+
+@jit(inline="always")
 def _unit(w, x, y, z):
-    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    """q/|q|; near |q| = 1 (|z| < 1e-6, z = |q|² − 1: products of unit quaternions) by
+    1 − z/2 + 3z²/8 (dropped terms below 1e-18), without square root and division."""
+    z2 = w * w + x * x + y * y + z * z - 1.0
+    if abs(z2) < 1.0e-6:
+        n = 1.0 - z2 * (0.5 - 0.375 * z2)
+    else:
+        n = 1.0 / math.sqrt(1.0 + z2)
     return w * n, x * n, y * n, z * n
-
-
-@jit
-def _saturated(x, y, z, limit):
-    lim = 0.999 * limit
-    return abs(x) >= lim or abs(y) >= lim or abs(z) >= lim
 
 
 @jit
@@ -380,7 +411,7 @@ def _offset_update(c, st, mx, my, mz):
                 p[i, j] -= ph[i] * ph[j] / den
 
 
-@jit
+@jit(inline="always")
 def _bias_update(c, st, hm, e0, e1, e2, w0, w1, w2):
     """Kalman update of the gyro bias: measurement e = H (b − b̂) + noise, noise diag(w).
 
@@ -388,68 +419,60 @@ def _bias_update(c, st, hm, e0, e1, e2, w0, w1, w2):
     """
     b = _S_BP
     p00, p01, p02 = st[b], st[b + 1], st[b + 2]
-    p10, p11, p12 = st[b + 3], st[b + 4], st[b + 5]
-    p20, p21, p22 = st[b + 6], st[b + 7], st[b + 8]
+    p11, p12, p22 = st[b + 4], st[b + 5], st[b + 8]
     h00, h01, h02, h10, h11, h12, h20, h21, h22 = hm
     lim = c[_C_BLIM]
     e0, e1, e2 = min(max(e0, -lim), lim), min(max(e1, -lim), lim), min(max(e2, -lim), lim)
-    # A = P Hᵀ (column j = P h_j)
+    # A = P Hᵀ (column j = P h_j); P is kept symmetric, its upper triangle is read
     a00 = p00 * h00 + p01 * h01 + p02 * h02
-    a10 = p10 * h00 + p11 * h01 + p12 * h02
-    a20 = p20 * h00 + p21 * h01 + p22 * h02
+    a10 = p01 * h00 + p11 * h01 + p12 * h02
+    a20 = p02 * h00 + p12 * h01 + p22 * h02
     a01 = p00 * h10 + p01 * h11 + p02 * h12
-    a11 = p10 * h10 + p11 * h11 + p12 * h12
-    a21 = p20 * h10 + p21 * h11 + p22 * h12
+    a11 = p01 * h10 + p11 * h11 + p12 * h12
+    a21 = p02 * h10 + p12 * h11 + p22 * h12
     a02 = p00 * h20 + p01 * h21 + p02 * h22
-    a12 = p10 * h20 + p11 * h21 + p12 * h22
-    a22 = p20 * h20 + p21 * h21 + p22 * h22
-    # S = H A + W
+    a12 = p01 * h20 + p11 * h21 + p12 * h22
+    a22 = p02 * h20 + p12 * h21 + p22 * h22
+    # S = H A + W (symmetric: upper triangle)
     s00 = h00 * a00 + h01 * a10 + h02 * a20 + w0
     s01 = h00 * a01 + h01 * a11 + h02 * a21
     s02 = h00 * a02 + h01 * a12 + h02 * a22
-    s10 = h10 * a00 + h11 * a10 + h12 * a20
     s11 = h10 * a01 + h11 * a11 + h12 * a21 + w1
     s12 = h10 * a02 + h11 * a12 + h12 * a22
-    s20 = h20 * a00 + h21 * a10 + h22 * a20
-    s21 = h20 * a01 + h21 * a11 + h22 * a21
     s22 = h20 * a02 + h21 * a12 + h22 * a22 + w2
-    i00 = s11 * s22 - s12 * s21
-    i01 = s02 * s21 - s01 * s22
+    # S⁻¹ = adj(S)/det(S) (symmetric); K = A adj(S) first, the division by det beside it
+    i00 = s11 * s22 - s12 * s12
+    i01 = s02 * s12 - s01 * s22
     i02 = s01 * s12 - s02 * s11
-    det = s00 * i00 + s10 * i01 + s20 * i02
+    i11 = s00 * s22 - s02 * s02
+    i12 = s01 * s02 - s00 * s12
+    i22 = s00 * s11 - s01 * s01
+    det = s00 * i00 + s01 * i01 + s02 * i02
     if not (det > 0.0):
         return
     inv = 1.0 / det
-    i00, i01, i02 = i00 * inv, i01 * inv, i02 * inv
-    i10 = (s12 * s20 - s10 * s22) * inv
-    i11 = (s00 * s22 - s02 * s20) * inv
-    i12 = (s02 * s10 - s00 * s12) * inv
-    i20 = (s10 * s21 - s11 * s20) * inv
-    i21 = (s01 * s20 - s00 * s21) * inv
-    i22 = (s00 * s11 - s01 * s10) * inv
-    # K = A S⁻¹
-    k00 = a00 * i00 + a01 * i10 + a02 * i20
-    k01 = a00 * i01 + a01 * i11 + a02 * i21
+    k00 = a00 * i00 + a01 * i01 + a02 * i02
+    k01 = a00 * i01 + a01 * i11 + a02 * i12
     k02 = a00 * i02 + a01 * i12 + a02 * i22
-    k10 = a10 * i00 + a11 * i10 + a12 * i20
-    k11 = a10 * i01 + a11 * i11 + a12 * i21
+    k10 = a10 * i00 + a11 * i01 + a12 * i02
+    k11 = a10 * i01 + a11 * i11 + a12 * i12
     k12 = a10 * i02 + a11 * i12 + a12 * i22
-    k20 = a20 * i00 + a21 * i10 + a22 * i20
-    k21 = a20 * i01 + a21 * i11 + a22 * i21
+    k20 = a20 * i00 + a21 * i01 + a22 * i02
+    k21 = a20 * i01 + a21 * i11 + a22 * i12
     k22 = a20 * i02 + a21 * i12 + a22 * i22
-    st[_S_BIAS] = min(max(st[_S_BIAS] + k00 * e0 + k01 * e1 + k02 * e2, -lim), lim)
-    st[_S_BIAS + 1] = min(max(st[_S_BIAS + 1] + k10 * e0 + k11 * e1 + k12 * e2, -lim), lim)
-    st[_S_BIAS + 2] = min(max(st[_S_BIAS + 2] + k20 * e0 + k21 * e1 + k22 * e2, -lim), lim)
-    # P ← P − K (H P) = P − K Aᵀ (P symmetric)
-    st[b] = p00 - (k00 * a00 + k01 * a01 + k02 * a02)
-    st[b + 1] = p01 - (k00 * a10 + k01 * a11 + k02 * a12)
-    st[b + 2] = p02 - (k00 * a20 + k01 * a21 + k02 * a22)
-    st[b + 3] = p10 - (k10 * a00 + k11 * a01 + k12 * a02)
-    st[b + 4] = p11 - (k10 * a10 + k11 * a11 + k12 * a12)
-    st[b + 5] = p12 - (k10 * a20 + k11 * a21 + k12 * a22)
-    st[b + 6] = p20 - (k20 * a00 + k21 * a01 + k22 * a02)
-    st[b + 7] = p21 - (k20 * a10 + k21 * a11 + k22 * a12)
-    st[b + 8] = p22 - (k20 * a20 + k21 * a21 + k22 * a22)
+    st[_S_BIAS] = min(max(st[_S_BIAS] + (k00 * e0 + k01 * e1 + k02 * e2) * inv, -lim), lim)
+    st[_S_BIAS + 1] = min(max(st[_S_BIAS + 1] + (k10 * e0 + k11 * e1 + k12 * e2) * inv, -lim), lim)
+    st[_S_BIAS + 2] = min(max(st[_S_BIAS + 2] + (k20 * e0 + k21 * e1 + k22 * e2) * inv, -lim), lim)
+    # P ← P − K (H P) = P − K Aᵀ (symmetric: the upper triangle, mirrored)
+    q01 = p01 - (k00 * a10 + k01 * a11 + k02 * a12) * inv
+    q02 = p02 - (k00 * a20 + k01 * a21 + k02 * a22) * inv
+    q12 = p12 - (k10 * a20 + k11 * a21 + k12 * a22) * inv
+    st[b] = p00 - (k00 * a00 + k01 * a01 + k02 * a02) * inv
+    st[b + 4] = p11 - (k10 * a10 + k11 * a11 + k12 * a12) * inv
+    st[b + 8] = p22 - (k20 * a20 + k21 * a21 + k22 * a22) * inv
+    st[b + 1] = st[b + 3] = q01
+    st[b + 2] = st[b + 6] = q02
+    st[b + 5] = st[b + 7] = q12
 
 
 @jit
@@ -485,20 +508,19 @@ def _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, fn, mx, my, mz, acc_ok, mag_
     st[_S_VOK] = 1.0 if speed_given and math.isfinite(speed) else 0.0
 
 
-@jit
-def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_given):
+@jit(inline="always")
+def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_given, imu_flags):
     """Advance the state by one sample; returns the sample's flags. Never raises."""
     h = c[_C_H]
-    flags, gx, gy, gz, acc_ok, fn, mag_ok = _input_checks(st, _S_GYRO, gx, gy, gz, ax, ay, az, mx, my, mz)
-    if _saturated(gx, gy, gz, c[_C_GRANGE]):
-        flags |= fl.SATURATED
-    if acc_ok and _saturated(ax, ay, az, c[_C_ARANGE]):
-        flags |= fl.SATURATED
-        acc_ok = False
+    flags, gx, gy, gz, acc_ok, f2, mag_ok, _, _, _, _ = _input_checks(
+        gx, gy, gz, ax, ay, az, mx, my, mz, st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2], imu_flags,
+        c[_C_GRANGE], c[_C_ARANGE])
+    st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = gx, gy, gz
     if st[_S_INIT] != 1.0:
         if st[_S_INIT] == 0.0 and not acc_ok:
             return flags | fl.UNINITIALIZED
-        _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, fn, mx, my, mz, acc_ok, mag_ok, speed, speed_given)
+        _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, math.sqrt(f2), mx, my, mz, acc_ok, mag_ok, speed,
+                         speed_given)
         return flags
     st[_S_TIME] += h
     t = st[_S_TIME]
@@ -507,19 +529,21 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
     bx, by, bz = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
     wx, wy, wz = gx - bx, gy - by, gz - bz
     eb = _qexp_fast(wx * h, wy * h, wz * h)
-    qi = _qmul(st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3], eb[0], eb[1], eb[2], eb[3])
-    qiw, qix, qiy, qiz = _unit(qi[0], qi[1], qi[2], qi[3])
+    # |q ∘ e| = |q| for a unit e: the normalisation factor comes from q before the product,
+    # in parallel with e^{bh}, not after it on the chain of dependent operations
+    qiw, qix, qiy, qiz = _unit(st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3])
+    qiw, qix, qiy, qiz = _qmul(qiw, qix, qiy, qiz, eb[0], eb[1], eb[2], eb[3])
     st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
     qcw, qcx, qcy, qcz = st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3]
     lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
 
     # ---- speed: acceleration of the IMU from the speed v of the point r_v of the vehicle
     a_v = c[_C_A_SPEED]
-    fs = 1.0 / h
-    w = (wx, wy, wz)
-    for i in range(3):
-        st[_S_WDOT + i] += a_v * ((w[i] - st[_S_WPREV + i]) * fs - st[_S_WDOT + i])
-        st[_S_WPREV + i] = w[i]
+    fs = c[_C_FS]
+    st[_S_WDOT] += a_v * ((wx - st[_S_WPREV]) * fs - st[_S_WDOT])
+    st[_S_WDOT + 1] += a_v * ((wy - st[_S_WPREV + 1]) * fs - st[_S_WDOT + 1])
+    st[_S_WDOT + 2] += a_v * ((wz - st[_S_WPREV + 2]) * fs - st[_S_WDOT + 2])
+    st[_S_WPREV], st[_S_WPREV + 1], st[_S_WPREV + 2] = wx, wy, wz
     v_ok = speed_given and math.isfinite(speed)
     comp_x = comp_y = comp_z = 0.0
     if v_ok:
@@ -538,21 +562,25 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
 
     # ---- rest detection (steady gyro and accelerometer; with speed: standing still)
     ar = c[_C_A_REST]
-    g = (gx, gy, gz)
-    for i in range(3):
-        st[_S_WLP + i] += ar * (g[i] - st[_S_WLP + i])
+    wl0 = st[_S_WLP] + ar * (gx - st[_S_WLP])
+    wl1 = st[_S_WLP + 1] + ar * (gy - st[_S_WLP + 1])
+    wl2 = st[_S_WLP + 2] + ar * (gz - st[_S_WLP + 2])
+    st[_S_WLP], st[_S_WLP + 1], st[_S_WLP + 2] = wl0, wl1, wl2
     rest = False
     if acc_ok:
-        a = (ax, ay, az)
-        for i in range(3):
-            st[_S_ALP + i] += ar * (a[i] - st[_S_ALP + i])
-        dw2 = (gx - st[_S_WLP]) ** 2 + (gy - st[_S_WLP + 1]) ** 2 + (gz - st[_S_WLP + 2]) ** 2
-        da2 = (ax - st[_S_ALP]) ** 2 + (ay - st[_S_ALP + 1]) ** 2 + (az - st[_S_ALP + 2]) ** 2
+        al0 = st[_S_ALP] + ar * (ax - st[_S_ALP])
+        al1 = st[_S_ALP + 1] + ar * (ay - st[_S_ALP + 1])
+        al2 = st[_S_ALP + 2] + ar * (az - st[_S_ALP + 2])
+        st[_S_ALP], st[_S_ALP + 1], st[_S_ALP + 2] = al0, al1, al2
+        dw2 = (gx - wl0) ** 2 + (gy - wl1) ** 2 + (gz - wl2) ** 2
+        da2 = (ax - al0) ** 2 + (ay - al1) ** 2 + (az - al2) ** 2
         thw = c[_C_REST_W]
-        # not turning either: the bias-corrected rate within the threshold plus 3σ of the bias
-        thr = thw + 3.0 * math.sqrt(max(st[_S_BP], st[_S_BP + 4], st[_S_BP + 8]))
-        rw2 = (st[_S_WLP] - bx) ** 2 + (st[_S_WLP + 1] - by) ** 2 + (st[_S_WLP + 2] - bz) ** 2
-        still = dw2 < thw * thw and da2 < c[_C_REST_A] * c[_C_REST_A] and rw2 < thr * thr
+        still = dw2 < thw * thw and da2 < c[_C_REST_A] * c[_C_REST_A]
+        if still:
+            # not turning either: the bias-corrected rate within the threshold plus 3σ of the bias
+            thr = thw + 3.0 * math.sqrt(max(st[_S_BP], st[_S_BP + 4], st[_S_BP + 8]))
+            rw2 = (wl0 - bx) ** 2 + (wl1 - by) ** 2 + (wl2 - bz) ** 2
+            still = rw2 < thr * thr
         if v_ok:
             still = still and abs(speed) < c[_C_REST_V]
         st[_S_REST_T] = st[_S_REST_T] + h if still else 0.0
@@ -565,20 +593,22 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
     if acc_ok:
         fx, fy, fz = ax - comp_x, ay - comp_y, az - comp_z
         fnorm = math.sqrt(fx * fx + fy * fy + fz * fz)
-        d = abs(fnorm - c[_C_G]) / (c[_C_G] * c[_C_GATE])
+        d = abs(fnorm - c[_C_G]) * c[_C_INV_GATE_G]
         weight = 1.0 / (1.0 + d * d)
         if weight < 0.5:
             flags |= fl.ACCEL_GATED
         alpha = c[_C_A_ACCV] if v_ok else c[_C_A_ACC]
-        alpha = max(alpha, h / (t + h)) * weight  # start: a running mean (as VQF)
-        fi = _qrot(qiw, qix, qiy, qiz, fx, fy, fz)
-        for i in range(3):
-            st[_S_FLP + i] += alpha * (fi[i] - st[_S_FLP + i])
-        nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2])
-        s = math.sqrt(nx * nx + ny * ny)
-        if s > 0.0:  # rotate about n × up by the angle between n and up
-            ang = _atan2(s, nz) / s
-            ex, ey = ny * ang, -nx * ang
+        if h > alpha * (t + h):  # start: a running mean (as VQF), α = max(α, h/(t + h))
+            alpha = h / (t + h)
+        alpha *= weight
+        fix, fiy, fiz = _qrot(qiw, qix, qiy, qiz, fx, fy, fz)
+        fl0 = st[_S_FLP] + alpha * (fix - st[_S_FLP])
+        fl1 = st[_S_FLP + 1] + alpha * (fiy - st[_S_FLP + 1])
+        fl2 = st[_S_FLP + 2] + alpha * (fiz - st[_S_FLP + 2])
+        st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2] = fl0, fl1, fl2
+        nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, fl0, fl1, fl2)
+        ang = _angle_over_sine(nx * nx + ny * ny, nz)
+        ex, ey = ny * ang, -nx * ang  # rotate about n × up by the angle between n and up
 
     # ---- heading error from the magnetometer (offset removed), disturbance detection
     if mag_ok:
@@ -594,12 +624,20 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
         mwx, mwy, mwz = _qrot(lw, lx, ly, lz, cx, cy, cz)
         mh = math.sqrt(mwx * mwx + mwy * mwy)
         norm = math.sqrt(mh * mh + mwz * mwz)
-        dip = _atan2(-mwz, mh)
         if st[_S_FIELD_OK] == 0.0:
             st[_S_BNORM] = norm if c[_C_BNORM] < 0.0 else c[_C_BNORM]
-            st[_S_DIP] = dip if math.isnan(c[_C_DIP]) else c[_C_DIP]
+            if math.isnan(c[_C_DIP]):
+                st[_S_DIP] = math.atan2(-mwz, mh)
+                st[_S_DIP_CS], st[_S_DIP_CS + 1] = (mh / norm, -mwz / norm) if norm > 0.0 else (1.0, 0.0)
+            else:
+                st[_S_DIP], st[_S_DIP_CS], st[_S_DIP_CS + 1] = c[_C_DIP], c[_C_DIP_C], c[_C_DIP_S]
             st[_S_FIELD_OK] = 1.0
-        if abs(norm - st[_S_BNORM]) > c[_C_BTOL] * st[_S_BNORM] or abs(dip - st[_S_DIP]) > c[_C_DTOL]:
+        # the dip δ_m = atan2(−m_U, m_H) against the expected δ: norm·(cos, sin)(δ_m − δ) from
+        # (cos δ, sin δ) in the state, without an arctangent of the large dip angle
+        c0, s0 = st[_S_DIP_CS], st[_S_DIP_CS + 1]
+        dcos = mh * c0 - mwz * s0
+        dsin = -mwz * c0 - mh * s0
+        if abs(norm - st[_S_BNORM]) > c[_C_BTOL] * st[_S_BNORM] or dcos < c[_C_COS_DTOL] * norm:
             flags |= fl.MAG_DISTURBED
             st[_S_REJ_T] += h
             if st[_S_REJ_T] > c[_C_REJ_N]:  # disturbed for too long: take this as the new field
@@ -610,8 +648,11 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
             af = c[_C_A_FIELD]
             if c[_C_BNORM] < 0.0:
                 st[_S_BNORM] += af * (norm - st[_S_BNORM])
-            if math.isnan(c[_C_DIP]):
-                st[_S_DIP] += af * (dip - st[_S_DIP])
+            if math.isnan(c[_C_DIP]):  # δ += α(δ_m − δ), and (cos δ, sin δ) turned with it
+                e = af * _atan2(dsin, dcos)
+                st[_S_DIP] += e
+                ce, se = 1.0 - 0.5 * e * e, e * (1.0 - e * e * (1.0 / 6.0))
+                st[_S_DIP_CS], st[_S_DIP_CS + 1] = c0 * ce - s0 * se, s0 * ce + c0 * se
             if mh > 0.0:
                 # the field's azimuth (clockwise from north) minus D, from the horizontal field
                 # turned by −D; turning the estimate about Up by it brings the field to D
@@ -621,57 +662,73 @@ def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_give
 
     # ---- the correction ω_c = K ε + k_p n × ε as a rotation of q_c (world frame)
     kt = c[_C_KT]
-    kh = max(c[_C_KH], 1.0 / (t + c[_C_T0]))  # start: heading follows the settling tilt
+    kh = c[_C_KH]
+    if kh * (t + c[_C_T0]) < 1.0:  # start: heading follows the settling tilt, k_h = max(k_h, 1/(t + t0))
+        kh = 1.0 / (t + c[_C_T0])
     kp = c[_C_KP]
     ux = kt * ex + kp * (ez - ey)
     uy = kt * ey + kp * (ex - ez)
     uz = kh * ez + kp * (ey - ex)
     if ux != 0.0 or uy != 0.0 or uz != 0.0:
         dq = _qexp_fast(ux * h, uy * h, uz * h)
-        qc = _qmul(dq[0], dq[1], dq[2], dq[3], qcw, qcx, qcy, qcz)
-        qcw, qcx, qcy, qcz = _unit(qc[0], qc[1], qc[2], qc[3])
+        qcw, qcx, qcy, qcz = _unit(qcw, qcx, qcy, qcz)  # (as for q_I: off the chain)
+        qcw, qcx, qcy, qcz = _qmul(dq[0], dq[1], dq[2], dq[3], qcw, qcx, qcy, qcz)
         st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3] = qcw, qcx, qcy, qcz
         lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
 
     # ---- gyro bias: Kalman filter (VQF): the correction rate seen through the tilt low-pass
-    for i in range(3):
-        if st[_S_BP + 4 * i] < c[_C_BP0]:
-            st[_S_BP + 4 * i] += c[_C_BV]
-    r = _mat_from_q(lw, lx, ly, lz)  # body → world
+    bp0, bv = c[_C_BP0], c[_C_BV]
+    if st[_S_BP] < bp0:
+        st[_S_BP] += bv
+    if st[_S_BP + 4] < bp0:
+        st[_S_BP + 4] += bv
+    if st[_S_BP + 8] < bp0:
+        st[_S_BP + 8] += bv
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = _mat_from_q(lw, lx, ly, lz)  # body → world
     alpha = c[_C_A_ACCV] if v_ok else c[_C_A_ACC]
-    rb = (r[0] * bx + r[1] * by + r[2] * bz, r[3] * bx + r[4] * by + r[5] * bz, r[6] * bx + r[7] * by + r[8] * bz)
-    for i in range(9):
-        st[_S_RLP + i] += alpha * (r[i] - st[_S_RLP + i])
-    for i in range(3):
-        st[_S_RBLP + i] += alpha * (rb[i] - st[_S_RBLP + i])
+    j = _S_RLP
+    h0 = st[j] + alpha * (r0 - st[j])
+    h1 = st[j + 1] + alpha * (r1 - st[j + 1])
+    h2 = st[j + 2] + alpha * (r2 - st[j + 2])
+    h3 = st[j + 3] + alpha * (r3 - st[j + 3])
+    h4 = st[j + 4] + alpha * (r4 - st[j + 4])
+    h5 = st[j + 5] + alpha * (r5 - st[j + 5])
+    h6 = st[j + 6] + alpha * (r6 - st[j + 6])
+    h7 = st[j + 7] + alpha * (r7 - st[j + 7])
+    h8 = st[j + 8] + alpha * (r8 - st[j + 8])
+    st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4] = h0, h1, h2, h3, h4
+    st[j + 5], st[j + 6], st[j + 7], st[j + 8] = h5, h6, h7, h8
+    j = _S_RBLP
+    rb0 = st[j] + alpha * ((r0 * bx + r1 * by + r2 * bz) - st[j])
+    rb1 = st[j + 1] + alpha * ((r3 * bx + r4 * by + r5 * bz) - st[j + 1])
+    rb2 = st[j + 2] + alpha * ((r6 * bx + r7 * by + r8 * bz) - st[j + 2])
+    st[j], st[j + 1], st[j + 2] = rb0, rb1, rb2
     if rest:
         _bias_update(c, st, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
-                     st[_S_WLP] - bx, st[_S_WLP + 1] - by, st[_S_WLP + 2] - bz, c[_C_BWR], c[_C_BWR], c[_C_BWR])
+                     wl0 - bx, wl1 - by, wl2 - bz, c[_C_BWR], c[_C_BWR], c[_C_BWR])
     elif acc_ok and t > c[_C_T0]:  # not during the start, while the low-pass settles
-        j = _S_RLP
-        hm = (st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5], st[j + 6], st[j + 7], st[j + 8])
-        e0 = st[_S_RBLP] - (hm[0] * bx + hm[1] * by + hm[2] * bz) - ux
-        e1 = st[_S_RBLP + 1] - (hm[3] * bx + hm[4] * by + hm[5] * bz) - uy
-        e2 = st[_S_RBLP + 2] - (hm[6] * bx + hm[7] * by + hm[8] * bz) - uz
+        e0 = rb0 - (h0 * bx + h1 * by + h2 * bz) - ux
+        e1 = rb1 - (h3 * bx + h4 * by + h5 * bz) - uy
+        e2 = rb2 - (h6 * bx + h7 * by + h8 * bz) - uz
         wv = c[_C_BWV] if ez != 0.0 else c[_C_BWV] * 1e6
-        _bias_update(c, st, hm, e0, e1, e2, c[_C_BWM], c[_C_BWM], wv)
+        _bias_update(c, st, (h0, h1, h2, h3, h4, h5, h6, h7, h8), e0, e1, e2, c[_C_BWM], c[_C_BWM], wv)
 
     st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = _unit(lw, lx, ly, lz)
     return flags
 
 
-@jit
-def _biso_plus_batch(c, st, gyro, accel, mag, speed, q_out, flags_out, bias_out):
-    """``_biso_plus_step`` over every row; ``speed`` is empty when no speed is given."""
+@jit(error_model="numpy")
+def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out, bias_out):
+    """``_biso_plus_step`` over every row; ``speed`` and ``imu_flags`` are empty when not given."""
     given = speed.shape[0] == gyro.shape[0] and speed.shape[0] > 0
+    has_flags = imu_flags.shape[0] == gyro.shape[0]
     for i in range(gyro.shape[0]):
         v = speed[i] if given else np.nan
+        sf = imu_flags[i] if has_flags else 0
         flags_out[i] = _biso_plus_step(c, st, gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
-                                       accel[i, 2], mag[i, 0], mag[i, 1], mag[i, 2], v, given)
-        for j in range(4):
-            q_out[i, j] = st[_S_LAM + j]
-        for j in range(3):
-            bias_out[i, j] = st[_S_BIAS + j]
+                                       accel[i, 2], mag[i, 0], mag[i, 1], mag[i, 2], v, given, sf)
+        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
+        bias_out[i, 0], bias_out[i, 1], bias_out[i, 2] = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
 
 
 class BisoPlusEstimator(Estimator):
@@ -681,7 +738,7 @@ class BisoPlusEstimator(Estimator):
     method = "biso_plus"
     Params = BisoPlusParams
     state_layout = STATE_LAYOUT
-    inputs = ("speed_mps",)
+    inputs = ("speed_mps", "imu_flags")
     estimates_bias = True
 
     def _coefficients(self, params: BisoPlusParams, fs_hz: float) -> np.ndarray:
@@ -690,10 +747,5 @@ class BisoPlusEstimator(Estimator):
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_plus_initial_state(q0, self._params)
 
-    def _extra_inputs(self, inputs: dict[str, Any], k: int) -> np.ndarray:
-        super()._extra_inputs(inputs, k)
-        speed = inputs.get("speed_mps")
-        return np.empty(0) if speed is None else as_series("speed_mps", speed, k)
-
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
-        _biso_plus_batch(coef, state, gyro, accel, mag, extra, q_out, flags, bias)
+        _biso_plus_batch(coef, state, gyro, accel, mag, extra["speed_mps"], extra["imu_flags"], q_out, flags, bias)

@@ -30,9 +30,17 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.estimators import flags as fl
-from biso_cosim.estimators._base import Estimator, check_finite, param
-from biso_cosim.estimators.biso import _input_checks
-from biso_cosim.estimators.reference import _ref_vector
+from biso_cosim.estimators._base import (
+    Estimator,
+    accel_range_param,
+    check_finite,
+    gyro_range_param,
+    layout_offsets,
+    param,
+    saturation_limits,
+)
+from biso_cosim.estimators._kernels import _input_checks
+from biso_cosim.estimators.reference import _ref_triad
 from biso_cosim.frames import _mat_from_q, _q_from_mat
 from biso_cosim.units import G0
 
@@ -56,13 +64,20 @@ class DcmPiParams:
     gravity_mps2: float = param(G0, symbol="g", unit="m/s²", doc="gravity of the acceleration weighting", source="")
     declination_rad: float = param(0.0, symbol="D", unit="rad", doc="magnetic declination, east positive",
                                    source="")
+    gyro_range_rad_s: float | None = gyro_range_param()
+    accel_range_mps2: float | None = accel_range_param()
 
 
-_C_H, _C_KPRP, _C_KIRP, _C_KPY, _C_KIY, _C_ILIM, _C_G, _C_SD, _C_CD, _C_CDH, _C_SDH = range(11)
-_C_SIZE = 11
+_COEF_LAYOUT = (("h", 1), ("kp_rp", 1), ("ki_rp", 1), ("kp_yaw", 1), ("ki_yaw", 1), ("i_limit", 1), ("g", 1),
+                ("sd", 1), ("cd", 1), ("cdh", 1), ("sdh", 1), ("gyro_limit", 1), ("accel_limit", 1))
+_C = layout_offsets(_COEF_LAYOUT)
+(_C_H, _C_KPRP, _C_KIRP, _C_KPY, _C_KIY, _C_ILIM, _C_G, _C_SD, _C_CD, _C_CDH, _C_SDH, _C_GLIM, _C_ALIM) = (
+    _C[name] for name, _ in _COEF_LAYOUT)
+_C_SIZE = _C["_size"]
 STATE_LAYOUT = (("initialized", 1), ("lam", 4), ("dcm", 9), ("omega_i", 3), ("gyro_hold", 3))
-_S_INIT, _S_LAM, _S_R, _S_WI, _S_GYRO = 0, 1, 5, 14, 17
-_S_SIZE = 20
+_S = layout_offsets(STATE_LAYOUT)
+_S_INIT, _S_LAM, _S_R, _S_WI, _S_GYRO = (_S[name] for name, _ in STATE_LAYOUT)
+_S_SIZE = _S["_size"]
 
 
 def dcm_pi_coefficients(p: DcmPiParams, fs_hz: float) -> np.ndarray:
@@ -74,6 +89,7 @@ def dcm_pi_coefficients(p: DcmPiParams, fs_hz: float) -> np.ndarray:
     c[_C_G] = check_finite("gravity_mps2", p.gravity_mps2, low=0.0, low_open=True)
     d = check_finite("declination_rad", p.declination_rad)
     c[_C_SD], c[_C_CD], c[_C_CDH], c[_C_SDH] = math.sin(d), math.cos(d), math.cos(0.5 * d), math.sin(0.5 * d)
+    c[_C_GLIM], c[_C_ALIM] = saturation_limits(p)
     return c
 
 
@@ -88,89 +104,90 @@ def dcm_pi_initial_state(q0: np.ndarray | None) -> np.ndarray:
     return st
 
 
-@jit
-def _dcm_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz):
-    flags, gx, gy, gz, acc_ok, fn, mag_ok = _input_checks(st, _S_GYRO, gx, gy, gz, ax, ay, az, mx, my, mz)
-    if st[_S_INIT] != 1.0:
-        if st[_S_INIT] == 0.0:
-            if not acc_ok:
-                return flags | fl.UNINITIALIZED
-            q = _ref_vector(ax / fn, ay / fn, az / fn, mx, my, mz, mag_ok, 1.0, 0.0, 0.0, 0.0, c[_C_CDH], c[_C_SDH])
-            r = _mat_from_q(q[0], q[1], q[2], q[3])
-            for i in range(9):
-                st[_S_R + i] = r[i]
-            for i in range(4):
-                st[_S_LAM + i] = q[i]
-        st[_S_INIT] = 1.0
-        return flags
+@jit(error_model="numpy")
+def _dcm_batch(c, st, gyro, accel, mag, imu_flags, q_out, flags_out, bias_out):
+    """The DCM update over every row; the state is held in local variables over the loop."""
+    n = gyro.shape[0]
+    has_flags = imu_flags.shape[0] == n
     h = c[_C_H]
-    r = st[_S_R:_S_R + 9]  # rows of R (body → world): r[0:3] east, r[3:6] north, r[6:9] up in body
-    ex = ey = ez = 0.0  # ω_P = K_P e (body axes)
-    ix = iy = iz = 0.0  # K_I e
-    if acc_ok:
-        # roll–pitch error f̂ × r_z, weighted by the closeness of |f| to g
-        wgt = min(max(1.0 - 2.0 * abs(1.0 - fn / c[_C_G]), 0.0), 1.0)
-        fx, fy, fz = ax / fn, ay / fn, az / fn
-        px = wgt * (fy * r[8] - fz * r[7])
-        py = wgt * (fz * r[6] - fx * r[8])
-        pz = wgt * (fx * r[7] - fy * r[6])
-        ex, ey, ez = c[_C_KPRP] * px, c[_C_KPRP] * py, c[_C_KPRP] * pz
-        ix, iy, iz = c[_C_KIRP] * px, c[_C_KIRP] * py, c[_C_KIRP] * pz
-    if mag_ok:
-        # field in world axes; its horizontal direction against magnetic north (sin D, cos D)
-        wx_ = r[0] * mx + r[1] * my + r[2] * mz
-        wy_ = r[3] * mx + r[4] * my + r[5] * mz
-        hn = math.sqrt(wx_ * wx_ + wy_ * wy_)
-        if hn > 0.0:
-            # sine of the turn about Up (r_z in body axes) that brings the field to D
-            s = (wx_ * c[_C_CD] - wy_ * c[_C_SD]) / hn
-            ex += c[_C_KPY] * s * r[6]
-            ey += c[_C_KPY] * s * r[7]
-            ez += c[_C_KPY] * s * r[8]
-            ix += c[_C_KIY] * s * r[6]
-            iy += c[_C_KIY] * s * r[7]
-            iz += c[_C_KIY] * s * r[8]
-    lim = c[_C_ILIM]
-    st[_S_WI] = min(max(st[_S_WI] + ix * h, -lim), lim)
-    st[_S_WI + 1] = min(max(st[_S_WI + 1] + iy * h, -lim), lim)
-    st[_S_WI + 2] = min(max(st[_S_WI + 2] + iz * h, -lim), lim)
-    wx, wy, wz = (gx + ex + st[_S_WI]) * h, (gy + ey + st[_S_WI + 1]) * h, (gz + ez + st[_S_WI + 2]) * h
-    # R ← R (I + [w]×)
-    n = np.empty(9)
-    for i in range(3):
-        a, b, d = r[3 * i], r[3 * i + 1], r[3 * i + 2]
-        n[3 * i] = a + b * wz - d * wy
-        n[3 * i + 1] = b + d * wx - a * wz
-        n[3 * i + 2] = d + a * wy - b * wx
-    # renormalisation (P&B eqs. 18–21) on the rows X = n[0:3], Y = n[3:6]
-    err = n[0] * n[3] + n[1] * n[4] + n[2] * n[5]
-    x0, x1, x2 = n[0] - 0.5 * err * n[3], n[1] - 0.5 * err * n[4], n[2] - 0.5 * err * n[5]
-    y0, y1, y2 = n[3] - 0.5 * err * n[0], n[4] - 0.5 * err * n[1], n[5] - 0.5 * err * n[2]
-    z0, z1, z2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
-    sx = 0.5 * (3.0 - (x0 * x0 + x1 * x1 + x2 * x2))
-    sy = 0.5 * (3.0 - (y0 * y0 + y1 * y1 + y2 * y2))
-    sz = 0.5 * (3.0 - (z0 * z0 + z1 * z1 + z2 * z2))
-    r[0], r[1], r[2] = x0 * sx, x1 * sx, x2 * sx
-    r[3], r[4], r[5] = y0 * sy, y1 * sy, y2 * sy
-    r[6], r[7], r[8] = z0 * sz, z1 * sz, z2 * sz
-    q = _q_from_mat(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8])
-    # keep the quaternion's sign continuous
-    if q[0] * st[_S_LAM] + q[1] * st[_S_LAM + 1] + q[2] * st[_S_LAM + 2] + q[3] * st[_S_LAM + 3] < 0.0:
-        q = (-q[0], -q[1], -q[2], -q[3])
-    for i in range(4):
-        st[_S_LAM + i] = q[i]
-    return flags
-
-
-@jit
-def _dcm_batch(c, st, gyro, accel, mag, q_out, flags_out, bias_out):
-    for i in range(gyro.shape[0]):
-        flags_out[i] = _dcm_step(c, st, gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1], accel[i, 2],
-                                 mag[i, 0], mag[i, 1], mag[i, 2])
-        for j in range(4):
-            q_out[i, j] = st[_S_LAM + j]
-        for j in range(3):
-            bias_out[i, j] = -st[_S_WI + j]
+    kprp, kirp, kpy, kiy, lim, g0 = c[_C_KPRP], c[_C_KIRP], c[_C_KPY], c[_C_KIY], c[_C_ILIM], c[_C_G]
+    sd, cd = c[_C_SD], c[_C_CD]
+    init = st[_S_INIT]
+    lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
+    # rows of R (body → world): (r0, r1, r2) east, (r3, r4, r5) north, (r6, r7, r8) up, in body axes
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = (st[_S_R], st[_S_R + 1], st[_S_R + 2], st[_S_R + 3], st[_S_R + 4],
+                                          st[_S_R + 5], st[_S_R + 6], st[_S_R + 7], st[_S_R + 8])
+    wix, wiy, wiz = st[_S_WI], st[_S_WI + 1], st[_S_WI + 2]
+    hx, hy, hz = st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2]
+    for i in range(n):
+        sf = imu_flags[i] if has_flags else 0
+        ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2]
+        mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
+        flags, gx, gy, gz, acc_ok, f2, mag_ok, ex, ey, ez, e2 = _input_checks(
+            gyro[i, 0], gyro[i, 1], gyro[i, 2], ax, ay, az, mx, my, mz, hx, hy, hz, sf, c[_C_GLIM], c[_C_ALIM])
+        hx, hy, hz = gx, gy, gz
+        if init == 0.0 and acc_ok:  # the first valid sample: R from the accelerometer and magnetometer
+            lw, lx, ly, lz = _ref_triad(ax, ay, az, f2, ex, ey, ez, e2, mag_ok, 1.0, 0.0, 0.0, 0.0,
+                                        c[_C_CDH], c[_C_SDH])
+            r0, r1, r2, r3, r4, r5, r6, r7, r8 = _mat_from_q(lw, lx, ly, lz)
+            init = 1.0
+        elif init == 0.0:
+            flags |= fl.UNINITIALIZED
+        elif init == 2.0:  # q0 from reset(): the attitude at this sample
+            init = 1.0
+        else:
+            px = py = pz = 0.0  # ω_P = K_P e (body axes)
+            ix = iy = iz = 0.0  # K_I e
+            if acc_ok:
+                # roll–pitch error f̂ × r_z, weighted by the closeness of |f| to g
+                fn = math.sqrt(f2)
+                wgt = min(max(1.0 - 2.0 * abs(1.0 - fn / g0), 0.0), 1.0)
+                fx, fy, fz = ax / fn, ay / fn, az / fn
+                ux = wgt * (fy * r8 - fz * r7)
+                uy = wgt * (fz * r6 - fx * r8)
+                uz = wgt * (fx * r7 - fy * r6)
+                px, py, pz = kprp * ux, kprp * uy, kprp * uz
+                ix, iy, iz = kirp * ux, kirp * uy, kirp * uz
+            if mag_ok:
+                # field in world axes; its horizontal direction against magnetic north (sin D, cos D)
+                we = r0 * mx + r1 * my + r2 * mz
+                wn = r3 * mx + r4 * my + r5 * mz
+                hn = math.sqrt(we * we + wn * wn)
+                if hn > 0.0:
+                    # sine of the turn about Up (r_z in body axes) that brings the field to D
+                    sy = (we * cd - wn * sd) / hn
+                    px, py, pz = px + kpy * sy * r6, py + kpy * sy * r7, pz + kpy * sy * r8
+                    ix, iy, iz = ix + kiy * sy * r6, iy + kiy * sy * r7, iz + kiy * sy * r8
+            wix = min(max(wix + ix * h, -lim), lim)
+            wiy = min(max(wiy + iy * h, -lim), lim)
+            wiz = min(max(wiz + iz * h, -lim), lim)
+            wx, wy, wz = (gx + px + wix) * h, (gy + py + wiy) * h, (gz + pz + wiz) * h
+            # R ← R (I + [w]×), then the renormalisation of P&B eqs. 18–21 on the rows X, Y
+            n0, n1, n2 = r0 + r1 * wz - r2 * wy, r1 + r2 * wx - r0 * wz, r2 + r0 * wy - r1 * wx
+            n3, n4, n5 = r3 + r4 * wz - r5 * wy, r4 + r5 * wx - r3 * wz, r5 + r3 * wy - r4 * wx
+            err = n0 * n3 + n1 * n4 + n2 * n5
+            x0, x1, x2 = n0 - 0.5 * err * n3, n1 - 0.5 * err * n4, n2 - 0.5 * err * n5
+            y0, y1, y2 = n3 - 0.5 * err * n0, n4 - 0.5 * err * n1, n5 - 0.5 * err * n2
+            z0, z1, z2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
+            sx = 0.5 * (3.0 - (x0 * x0 + x1 * x1 + x2 * x2))
+            sy_ = 0.5 * (3.0 - (y0 * y0 + y1 * y1 + y2 * y2))
+            sz = 0.5 * (3.0 - (z0 * z0 + z1 * z1 + z2 * z2))
+            r0, r1, r2 = x0 * sx, x1 * sx, x2 * sx
+            r3, r4, r5 = y0 * sy_, y1 * sy_, y2 * sy_
+            r6, r7, r8 = z0 * sz, z1 * sz, z2 * sz
+            qw, qx, qy, qz = _q_from_mat(r0, r1, r2, r3, r4, r5, r6, r7, r8)
+            if qw * lw + qx * lx + qy * ly + qz * lz < 0.0:  # keep the quaternion's sign continuous
+                qw, qx, qy, qz = -qw, -qx, -qy, -qz
+            lw, lx, ly, lz = qw, qx, qy, qz
+        flags_out[i] = flags
+        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = lw, lx, ly, lz
+        bias_out[i, 0], bias_out[i, 1], bias_out[i, 2] = -wix, -wiy, -wiz
+    st[_S_INIT] = init
+    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = lw, lx, ly, lz
+    st[_S_R], st[_S_R + 1], st[_S_R + 2], st[_S_R + 3], st[_S_R + 4] = r0, r1, r2, r3, r4
+    st[_S_R + 5], st[_S_R + 6], st[_S_R + 7], st[_S_R + 8] = r5, r6, r7, r8
+    st[_S_WI], st[_S_WI + 1], st[_S_WI + 2] = wix, wiy, wiz
+    st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = hx, hy, hz
 
 
 class DcmPiEstimator(Estimator):
@@ -180,6 +197,7 @@ class DcmPiEstimator(Estimator):
     Params = DcmPiParams
     state_layout = STATE_LAYOUT
     estimates_bias = True
+    inputs = ("imu_flags",)
 
     def _coefficients(self, params: DcmPiParams, fs_hz: float) -> np.ndarray:
         return dcm_pi_coefficients(params, fs_hz)
@@ -188,4 +206,4 @@ class DcmPiEstimator(Estimator):
         return dcm_pi_initial_state(q0)
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
-        _dcm_batch(coef, state, gyro, accel, mag, q_out, flags, bias)
+        _dcm_batch(coef, state, gyro, accel, mag, extra["imu_flags"], q_out, flags, bias)

@@ -14,8 +14,9 @@ defined:
 ``"vector"``
     singularity-free and trig-free (TRIAD): up = f/|f|, east = (H × up)/|H × up|,
     north = up × east are the rows of the body→world matrix, turned into a quaternion by
-    Shepperd's method, then rotated by the declination about Up. Defined for every
-    attitude; several times cheaper (DESIGN.md §9).
+    Shepperd's method (run on the unnormalised rows: ``_kernels._q_from_up_east``), then
+    rotated by the declination about Up. Defined for every attitude; several times cheaper
+    (DESIGN.md §9).
 
 Both map the magnetic heading to true heading with the declination D (east positive).
 When the magnetometer sample is unusable (non-finite, zero, or parallel to f) the heading
@@ -29,12 +30,23 @@ import math
 import numpy as np
 
 from biso_cosim._numba import jit
+from biso_cosim.estimators._kernels import (  # noqa: F401  (the limits are imported from here by other kernels)
+    MAG_PARALLEL_SIN,
+    MAX_ACCEL,
+    MAX_MAG,
+    MAX_RATE,
+    MIN_ACCEL,
+    MIN_MAG,
+    _accel_ok,
+    _mag_ok,
+    _q_from_up_east,
+    _rotate_true_north,
+)
 from biso_cosim.frames import (
     _gost_angles_from_lambda,
     _gost_lambda_from_angles,
     _gost_lambda_from_q,
     _q_from_gost_lambda,
-    _qmul,
     _qrot_inv,
 )
 
@@ -43,15 +55,8 @@ __all__ = ["reference_attitude", "REFERENCE_METHODS"]
 REFERENCE_METHODS = ("vector", "euler")
 """Names of the λ_k constructions; the kernel takes the index into this tuple."""
 
-# Validity limits of one input sample (beyond any MEMS full scale, below float overflow).
-MAX_RATE = 1.0e4  # rad/s
-MIN_ACCEL, MAX_ACCEL = 1.0e-6, 1.0e6  # m/s²
-MIN_MAG, MAX_MAG = 1.0e-6, 1.0e7  # µT
-# sin of the angle between H and f below which the field gives no heading.
-MAG_PARALLEL_SIN = 1.0e-6
 
-
-@jit
+@jit(inline="always")
 def _vec_norm_ok(x, y, z, lo, hi):
     """(ok, norm): finite and lo < |v| < hi."""
     n2 = x * x + y * y + z * z
@@ -61,14 +66,14 @@ def _vec_norm_ok(x, y, z, lo, hi):
     return (n > lo) and (n < hi), n
 
 
-@jit
+@jit(inline="always")
 def _vec_ok(x, y, z, lo, hi):
     """Finite and lo < |v| < hi, without the square root."""
     n2 = x * x + y * y + z * z
     return math.isfinite(n2) and n2 > lo * lo and n2 < hi * hi
 
 
-@jit
+@jit(inline="always")
 def _mag_usable(fx, fy, fz, mx, my, mz):
     """Whether the field (finite, non-zero) has a part across f (finite, non-zero): a heading."""
     cx = my * fz - mz * fy
@@ -79,64 +84,47 @@ def _mag_usable(fx, fy, fz, mx, my, mz):
     return cx * cx + cy * cy + cz * cz > (MAG_PARALLEL_SIN * MAG_PARALLEL_SIN) * m2 * f2
 
 
-@jit
-def _q_from_rows(r00, r01, r02, r10, r11, r12, r20, r21, r22):
-    """Shepperd's method for an orthonormal matrix (rows built so): unit to rounding, no
-    renormalisation, one square root (frames._q_from_mat also normalises)."""
-    trace = r00 + r11 + r22
-    if trace >= r00 and trace >= r11 and trace >= r22:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        i = 1.0 / s
-        return 0.25 * s, (r21 - r12) * i, (r02 - r20) * i, (r10 - r01) * i
-    if r00 >= r11 and r00 >= r22:
-        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
-        i = 1.0 / s
-        return (r21 - r12) * i, 0.25 * s, (r01 + r10) * i, (r02 + r20) * i
-    if r11 >= r22:
-        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
-        i = 1.0 / s
-        return (r02 - r20) * i, (r01 + r10) * i, 0.25 * s, (r12 + r21) * i
-    s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
-    i = 1.0 / s
-    return (r10 - r01) * i, (r02 + r20) * i, (r12 + r21) * i, 0.25 * s
+@jit(inline="always")
+def _east_from_estimate(fx, fy, fz, f2, lw, lx, ly, lz):
+    """East (unnormalised, ⊥ f) of the estimate l (any non-zero quaternion): its north in body
+    axes crossed with up; where the estimate's north is (nearly) along f, its east projected
+    on the plane across f instead."""
+    nx, ny, nz = _qrot_inv(lw, lx, ly, lz, 0.0, 1.0, 0.0)  # |n| = |l|²
+    ex = ny * fz - nz * fy
+    ey = nz * fx - nx * fz
+    ez = nx * fy - ny * fx
+    l2 = lw * lw + lx * lx + ly * ly + lz * lz
+    if ex * ex + ey * ey + ez * ez < 0.01 * f2 * l2 * l2:
+        ex, ey, ez = _qrot_inv(lw, lx, ly, lz, 1.0, 0.0, 0.0)
+        d = (ex * fx + ey * fy + ez * fz) / f2
+        ex, ey, ez = ex - d * fx, ey - d * fy, ez - d * fz
+    return ex, ey, ez
 
 
-@jit
+@jit(inline="always")
+def _ref_triad(fx, fy, fz, f2, ex, ey, ez, e2, mag_ok, lw, lx, ly, lz, cdh, sdh):
+    """λ_k by TRIAD: up along the specific force f, east along E = m × f (body axes, any
+    lengths; |f|², |E|² given), the magnetic attitude turned to true north (cos D/2, sin D/2).
+    Without a usable field (``mag_ok`` false) east comes from the estimate l instead."""
+    if mag_ok:
+        qw, qx, qy, qz = _q_from_up_east(fx, fy, fz, f2, ex, ey, ez, e2)
+        return _rotate_true_north(cdh, sdh, qw, qx, qy, qz)
+    ex, ey, ez = _east_from_estimate(fx, fy, fz, f2, lw, lx, ly, lz)
+    return _q_from_up_east(fx, fy, fz, f2, ex, ey, ez, ex * ex + ey * ey + ez * ez)
+
+
+@jit(inline="always")
 def _ref_vector(ux, uy, uz, mx, my, mz, mag_ok, lw, lx, ly, lz, cdh, sdh):
-    """λ_k by TRIAD from the unit up vector u (body) and the field m (body).
+    """λ_k by TRIAD from the up direction u and the field m (body axes; any lengths).
 
-    ``cdh, sdh`` are cos(D/2), sin(D/2). Without a usable field the east axis comes from
-    the estimate ``l`` (any non-zero quaternion).
+    ``cdh, sdh`` are cos(D/2), sin(D/2). Without a usable field (``mag_ok`` false) the east
+    axis comes from the estimate ``l`` (any non-zero quaternion).
     """
-    if mag_ok:
-        ex = my * uz - mz * uy
-        ey = mz * ux - mx * uz
-        ez = mx * uy - my * ux
-    else:
-        # Estimate's north in body axes, crossed with up, gives east; if the estimate's
-        # north is vertical, its east is not: project that on the horizontal instead.
-        nx, ny, nz = _qrot_inv(lw, lx, ly, lz, 0.0, 1.0, 0.0)
-        s = 1.0 / (lw * lw + lx * lx + ly * ly + lz * lz)
-        nx, ny, nz = nx * s, ny * s, nz * s
-        ex = ny * uz - nz * uy
-        ey = nz * ux - nx * uz
-        ez = nx * uy - ny * ux
-        if ex * ex + ey * ey + ez * ez < 0.01:
-            ex, ey, ez = _qrot_inv(lw, lx, ly, lz, 1.0, 0.0, 0.0)
-            ex, ey, ez = ex * s, ey * s, ez * s
-            d = ex * ux + ey * uy + ez * uz
-            ex, ey, ez = ex - d * ux, ey - d * uy, ez - d * uz
-    en = 1.0 / math.sqrt(ex * ex + ey * ey + ez * ez)  # (the rows are then orthonormal)
-    ex, ey, ez = ex * en, ey * en, ez * en
-    nx = uy * ez - uz * ey
-    ny = uz * ex - ux * ez
-    nz = ux * ey - uy * ex
-    # rows of mat_wb are the world axes (E, N, U) in body components
-    qw, qx, qy, qz = _q_from_rows(ex, ey, ez, nx, ny, nz, ux, uy, uz)
-    if mag_ok:
-        # magnetic → true: rotate the world by −D about Up
-        return _qmul(cdh, 0.0, 0.0, -sdh, qw, qx, qy, qz)
-    return qw, qx, qy, qz
+    ex = my * uz - mz * uy
+    ey = mz * ux - mx * uz
+    ez = mx * uy - my * ux
+    return _ref_triad(ux, uy, uz, ux * ux + uy * uy + uz * uz, ex, ey, ez, ex * ex + ey * ey + ez * ez, mag_ok,
+                      lw, lx, ly, lz, cdh, sdh)
 
 
 @jit
@@ -159,11 +147,11 @@ def _ref_euler(fx, fy, fz, mx, my, mz, mag_ok, lw, lx, ly, lz, decl):
     return _q_from_gost_lambda(l0, l1, l2, l3)
 
 
-@jit
-def _reference(method, fx, fy, fz, fn, mx, my, mz, mag_ok, lw, lx, ly, lz, decl, cdh, sdh):
-    """λ_k (unit, q_wb) by ``method`` (index into REFERENCE_METHODS); fn = |f| > 0."""
+@jit(inline="always")
+def _reference(method, fx, fy, fz, f2, ex, ey, ez, e2, mx, my, mz, mag_ok, lw, lx, ly, lz, decl, cdh, sdh):
+    """λ_k (unit, q_wb) by ``method`` (index into REFERENCE_METHODS); |f|² = f2 > 0, E = m × f."""
     if method == 0:
-        return _ref_vector(fx / fn, fy / fn, fz / fn, mx, my, mz, mag_ok, lw, lx, ly, lz, cdh, sdh)
+        return _ref_triad(fx, fy, fz, f2, ex, ey, ez, e2, mag_ok, lw, lx, ly, lz, cdh, sdh)
     return _ref_euler(fx, fy, fz, mx, my, mz, mag_ok, lw, lx, ly, lz, decl)
 
 
@@ -174,15 +162,16 @@ def _batch_reference(method, accel, mag, decl, out):
     lw, lx, ly, lz = 1.0, 0.0, 0.0, 0.0
     for i in range(accel.shape[0]):
         fx, fy, fz = accel[i, 0], accel[i, 1], accel[i, 2]
-        ok, fn = _vec_norm_ok(fx, fy, fz, MIN_ACCEL, MAX_ACCEL)
+        ok, f2 = _accel_ok(fx, fy, fz)
         if not ok:
             out[i, 0] = out[i, 1] = out[i, 2] = out[i, 3] = np.nan
             continue
         mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
-        mag_ok = _vec_norm_ok(mx, my, mz, MIN_MAG, MAX_MAG)[0]
-        if mag_ok:
-            mag_ok = _mag_usable(fx, fy, fz, mx, my, mz)
-        q = _reference(method, fx, fy, fz, fn, mx, my, mz, mag_ok, lw, lx, ly, lz, decl, cdh, sdh)
+        ex, ey, ez = my * fz - mz * fy, mz * fx - mx * fz, mx * fy - my * fx
+        e2 = ex * ex + ey * ey + ez * ez
+        mag_ok, m2 = _mag_ok(mx, my, mz)
+        mag_ok = mag_ok and e2 > (MAG_PARALLEL_SIN * MAG_PARALLEL_SIN) * m2 * f2
+        q = _reference(method, fx, fy, fz, f2, ex, ey, ez, e2, mx, my, mz, mag_ok, lw, lx, ly, lz, decl, cdh, sdh)
         # keep consecutive rows in one hemisphere (continuous sign)
         if q[0] * lw + q[1] * lx + q[2] * ly + q[3] * lz < 0.0:
             q = (-q[0], -q[1], -q[2], -q[3])
