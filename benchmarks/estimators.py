@@ -1,6 +1,7 @@
 """Speed of every estimator's batch call against VQF's and imufusion's, on the same data.
 
-Prints samples per second and ns per sample of each method and the ratio to VQF's real-time
+Prints samples per second and ns per sample of each method (the GNSS-aided ones with 5 Hz
+fixes) and the ratio to VQF's real-time
 batch call (``vqf.VQF.updateBatch``), all measured in this run on this machine, round-robin
 (each repetition times every method once, and the best repetition counts), so that a change
 of load affects all of them alike. Targets of issue 4: ``biso`` at least 5× VQF's batch
@@ -29,8 +30,9 @@ import time
 
 import numpy as np
 
-from biso_cosim.estimators import estimator_names, make_estimator
+from biso_cosim.estimators import estimator_inputs, estimator_names, make_estimator
 from biso_cosim.motions import make_motion
+from biso_cosim.sensors.gnss import GnssFixes
 
 FS = 200.0
 TARGETS = {"biso": 5.0, "biso_plus": 2.0}
@@ -47,6 +49,14 @@ def _data(seconds: float, fs: float = FS, seed: int = 0):
     return [np.ascontiguousarray(a) for a in (gyro, accel, mag)]
 
 
+def _fixes_at_rest(seconds: float, rate_hz: float = 5.0) -> GnssFixes:
+    """5 Hz GNSS fixes of a body that turns in place (the tumble motion): zero velocity, 50 ms late."""
+    t = np.arange(0.0, seconds - 0.1, 1.0 / rate_hz)
+    k = t.shape[0]
+    zeros = np.zeros((k, 3))
+    return GnssFixes(t, t + 0.05, zeros, zeros.copy(), np.zeros(k), np.zeros(k), np.zeros(k), np.ones(k, dtype=bool))
+
+
 def _methods(gyro, accel, mag):
     """name → function running one whole batch (a fresh estimator each time)."""
     n = gyro.shape[0]
@@ -54,6 +64,8 @@ def _methods(gyro, accel, mag):
 
     def ours(name, speed=False, **params):
         kw = {"speed_mps": np.full(n, 5.0)} if speed else {}
+        if "gnss" in estimator_inputs(name):
+            kw["gnss"] = _fixes_at_rest(n / FS)
         make_estimator(name, FS, **params).update(gyro[:10], accel[:10], mag[:10])  # compile / load the cache
         return lambda: make_estimator(name, FS, **params).update(gyro, accel, mag, **kw)
 

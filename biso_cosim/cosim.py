@@ -92,6 +92,16 @@ class EstimatorSpec:
         return self.label or self.name
 
 
+def _gyro_step(est: Any):
+    """The coning algorithm an estimator's ``gyro_step`` parameter names, or None."""
+    params = getattr(est, "params", None)
+    if "dtheta_b" not in getattr(est, "inputs", ()) or getattr(params, "gyro_step", "hold") == "hold":
+        return None
+    from biso_cosim.strapdown.algorithms import get_algorithm
+
+    return get_algorithm("coning", params.gyro_step)
+
+
 class _UserEstimator:
     """Adapts a user's estimator: ``update(gyro_b, accel_b, mag_b)`` returning (k, 4) ``q_wb``
     or an object with ``q_wb`` (and optionally ``flags``); ``reset()`` if it has one."""
@@ -275,7 +285,8 @@ class CoSimulation:
                             site=self.route.site, input_rate_hz=input_rate_hz, outages=outages)
 
     def _setup_navigators(self, navigators: Iterable) -> None:
-        """Parameters of the navigators and the increments they need from the sensor."""
+        """Parameters of the navigators, and the increments they and the estimators with a coning-algorithm
+        ``gyro_step`` need from the sensor."""
         from biso_cosim.strapdown import NavigatorParams
         from biso_cosim.strapdown.navigator import _setup
 
@@ -304,9 +315,24 @@ class CoSimulation:
             else:
                 subs.add(setup.rows_dtheta)
             self.navigator_params[label] = params
+        # estimators whose gyro step is a coning algorithm take the same increments (input dtheta_b)
+        self._dtheta_forms: dict[str, tuple[str, int]] = {}
+        for key, est in self.estimators.items():
+            step = _gyro_step(est)
+            if step is None:
+                continue
+            if step.form == "multiple":
+                orders = max(orders, step.m_dtheta)
+                self._dtheta_forms[key] = ("multiple", step.m_dtheta)
+            elif step.m_dtheta == 1:
+                orders = max(orders, 1)
+                self._dtheta_forms[key] = ("multiple", 1)  # the whole interval's increment ΔΘ¹
+            else:
+                subs.add(step.m_dtheta)
+                self._dtheta_forms[key] = ("sub", step.m_dtheta)
         if len(subs) > 1:
-            raise ValueError(f"navigators: sub-interval algorithms with different numbers of increments "
-                             f"({sorted(subs)}) cannot share one sensor stream; run them separately")
+            raise ValueError(f"navigators and gyro_step: sub-interval algorithms with different numbers of "
+                             f"increments ({sorted(subs)}) cannot share one sensor stream; run them separately")
         self._increment_orders = orders
         self._subintervals = subs.pop() if subs else 0
 
@@ -479,6 +505,9 @@ class CoSimulation:
                 extra["gnss"] = fixes
             if "imu_flags" in inputs:  # the sensor's saturation and overflow bits
                 extra["imu_flags"] = samples.flags
+            if key in self._dtheta_forms:  # increments for a coning-algorithm gyro step
+                form, m = self._dtheta_forms[key]
+                extra["dtheta_b"] = samples.dtheta[:, :m] if form == "multiple" else samples.dtheta_sub
             outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
         self._log["truth"].append(at_samples)
         self._log["imu"].append(samples)

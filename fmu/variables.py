@@ -162,6 +162,11 @@ def python_only_params() -> dict[str, list[str]]:
     return {name: [r["name"] for r in rows if r["kind"] is None] for name, rows in _typed_rows().items()}
 
 
+# parameters whose non-default values need inputs the FMUs do not carry (gyro_step: the
+# sensor's multiple-integral increments)
+_NEEDS_PYTHON_INPUTS = {"gyro_step"}
+
+
 @functools.cache
 def _typed_rows() -> dict[str, tuple[dict[str, Any], ...]]:
     from biso_cosim.estimators import describe_estimator, make_estimator
@@ -169,7 +174,8 @@ def _typed_rows() -> dict[str, tuple[dict[str, Any], ...]]:
     out = {}
     for name in fmu_estimator_names():
         hints = typing.get_type_hints(make_estimator(name, 200.0).Params)
-        out[name] = tuple({**row, "kind": _fmi_kind(hints[row["name"]]), "optional": _optional(hints[row["name"]])}
+        out[name] = tuple({**row, "kind": None if row["name"] in _NEEDS_PYTHON_INPUTS else _fmi_kind(hints[row["name"]]),
+                           "optional": _optional(hints[row["name"]])}
                           for row in describe_estimator(name)["params"])
     return out
 

@@ -308,3 +308,24 @@ def test_cli_input_errors_and_bugs_are_told_apart(tmp_path, capsys):
     assert cli_main(["estimate", str(tmp_path / "in.csv"), "--out", str(tmp_path / "o.csv"), "--fs", "100",
                      "--param", "bogus=1"]) == 2
     assert "bogus" in capsys.readouterr().err
+
+
+def test_cli_estimator_specs_carry_parameters_and_labels(tmp_path, capsys):
+    from biso_cosim.cli import UserError, estimator_spec
+
+    spec = estimator_spec("biso:k=(1.0,2.0,3.0,4.0),k_p=0,reference=euler")
+    assert spec.name == "biso" and spec.params == {"k": (1.0, 2.0, 3.0, 4.0), "k_p": 0, "reference": "euler"}
+    assert spec.key == "biso_1.02.03.04.0_0_euler"
+    assert estimator_spec("inv=poisson:gyro_step=invariant").key == "inv"
+    assert estimator_spec("biso_plus").params == {}
+    for bad in ("biso:k", "biso:k=", "=biso", ":k=1"):
+        with pytest.raises(UserError, match="--estimator"):
+            estimator_spec(bad)
+    out = tmp_path / "run"
+    assert cli_main(["run", "--route", "figure8", "--duration", "2", "--out", str(out), "--no-progress", "--no-log",
+                     "--estimator", "inv=poisson:gyro_step=invariant", "--estimator", "biso:cutoff_hz=5"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["estimators"]) == {"inv", "biso_5", "poisson"}
+    assert cli_main(["run", "--route", "figure8", "--duration", "2", "--out", str(out),
+                     "--estimator", "biso:nope=1"]) == 2
+    assert "no parameter(s) ['nope']" in capsys.readouterr().err

@@ -9,8 +9,11 @@ an exit code). Modules are imported only when the parser is built, and heavy imp
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
+import re
 import sys
+from typing import Any
 
 from biso_cosim import __version__
 
@@ -20,6 +23,52 @@ COMMANDS = ("run", "estimate", "compare", "routes", "reproduce", "sensor", "fmu"
 
 class UserError(Exception):
     """A problem with the user's input: printed as one line, exit code 2, no traceback."""
+
+
+def parse_params(items: list[str], option: str) -> dict[str, Any]:
+    """NAME=VALUE pairs; a VALUE is a Python literal (number, tuple, True, None) or else a string."""
+    params: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            raise UserError(f"{option} expects NAME=VALUE, got {item!r}")
+        try:
+            params[name] = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            params[name] = value.strip()
+    return params
+
+
+def split_top_level(text: str, sep: str = ",") -> list[str]:
+    """Split at ``sep`` outside brackets, so that tuple values stay whole: 'a=1,k=(1,2)'."""
+    parts, depth, start = [], 0, 0
+    for i, ch in enumerate(text):
+        depth += ch in "([{"
+        depth -= ch in ")]}"
+        if ch == sep and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return [s for s in (p.strip() for p in parts) if s]
+
+
+def estimator_spec(text: str, option: str = "--estimator"):
+    """``[LABEL=]NAME[:PARAM=VALUE,...]`` → ``EstimatorSpec``; without a label, one is made
+    from the name and the values (``poisson:gyro_step=invariant`` → ``poisson_invariant``)."""
+    from biso_cosim.cosim import EstimatorSpec
+
+    head, _, tail = text.partition(":")
+    label, eq, name = head.partition("=")
+    if not eq:
+        label, name = "", head
+    name, label = name.strip(), label.strip()
+    if not name or (eq and not label):
+        raise UserError(f"{option} expects [LABEL=]NAME[:PARAM=VALUE,...], got {text!r}")
+    params = parse_params(split_top_level(tail), f"{option} {text!r}") if tail.strip() else {}
+    if not label:
+        label = "_".join([name] + [re.sub(r"[^A-Za-z0-9.]+", "", str(v)) for v in params.values()])
+    return EstimatorSpec(name, params, label=label)
 
 
 def build_parser() -> argparse.ArgumentParser:

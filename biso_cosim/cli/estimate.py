@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from biso_cosim.cli import UserError
+from biso_cosim.cli import UserError, parse_params
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -56,21 +56,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="column with the forward speed in m/s for estimators that take speed_mps "
                          "(e.g. speed_mps of a run's log)")
     p.set_defaults(func=main)
-
-
-def _parse_params(items: list[str]) -> dict[str, Any]:
-    """NAME=VALUE pairs; a VALUE is a Python literal (number, tuple, True, None) or else a string."""
-    params: dict[str, Any] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        name = name.strip()
-        if not sep or not name:
-            raise UserError(f"--param expects NAME=VALUE, got {item!r}")
-        try:
-            params[name] = ast.literal_eval(value.strip())
-        except (ValueError, SyntaxError):
-            params[name] = value.strip()
-    return params
 
 
 def sample_rate_from_times(t_s: np.ndarray) -> float:
@@ -176,7 +161,7 @@ def main(args: argparse.Namespace) -> int:
         fs = sample_rate_from_times(t_s)
     else:
         raise UserError(f"{args.input}: no t_s column (nor fs_hz in the header); give the sample rate with --fs")
-    params = _parse_params(args.param)
+    params = parse_params(args.param, "--param")
     declination_deg = _declination_deg(path, columns, args.declination_deg)
     params.setdefault("declination_rad", math.radians(declination_deg))
     if "gnss" in takes:

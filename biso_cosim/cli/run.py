@@ -7,7 +7,7 @@ import json
 import math
 from pathlib import Path
 
-from biso_cosim.cli import UserError
+from biso_cosim.cli import UserError, estimator_spec
 
 BASELINE = "poisson"
 
@@ -27,10 +27,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated seconds (default: the route's nominal duration + 10 s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor errors (default 0)")
-    p.add_argument("--estimator", action="append", metavar="NAME",
-                   help="estimator to run (repeatable); default: biso (the paper's) and biso_plus (its "
-                        f"vehicle variant, with wheel odometry). The uncorrected integration '{BASELINE}' "
-                        "runs too, as the baseline, unless --no-baseline")
+    p.add_argument("--estimator", action="append", metavar="[LABEL=]NAME[:P=V,...]",
+                   help="estimator to run (repeatable), optionally with parameters and a label, e.g. "
+                        "biso:cutoff_hz=5 or inv=poisson:gyro_step=invariant; default: biso (the paper's) "
+                        "and biso_plus (its vehicle variant, with wheel odometry). The uncorrected "
+                        f"integration '{BASELINE}' runs too, as the baseline, unless --no-baseline")
     p.add_argument("--no-baseline", action="store_true", help=f"do not add the '{BASELINE}' baseline")
     p.add_argument("--sensor-profile", default=None, metavar="NAME|FILE",
                    help="MPU-9250 profile: mpu9250_calibrated (default: the chip after the usual start-up "
@@ -49,20 +50,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _format_table(summary: dict) -> str:
+    w = max([14] + [len(key) + 1 for key in summary["estimators"]])  # the name column fits every label
     rows = []
-    head = f"{'estimator':<14}" + "".join(f"{h:>26}" for h in ("RMS error (°)", "max |error| (°)"))
+    head = f"{'estimator':<{w}}" + "".join(f"{h:>26}" for h in ("RMS error (°)", "max |error| (°)"))
     has_closure = summary["truth_start_end_deg"] is not None
     if has_closure:
         head += f"{'start-to-end (°)':>26}"
     rows.append(head)
-    sub = f"{'':<14}" + ("    roll   pitch heading  " * (3 if has_closure else 2))
+    sub = f"{'':<{w}}" + ("    roll   pitch heading  " * (3 if has_closure else 2))
     rows.append(sub.rstrip())
     if has_closure:
         t = summary["truth_start_end_deg"]
-        rows.append(f"{'truth':<14}" + " " * 52 + f"{t['roll']:8.3f}{t['pitch']:8.3f}{t['heading']:8.3f}")
+        rows.append(f"{'truth':<{w}}" + " " * 52 + f"{t['roll']:8.3f}{t['pitch']:8.3f}{t['heading']:8.3f}")
     for key, entry in summary["estimators"].items():
         e = entry["errors"]
-        line = f"{key:<14}"
+        line = f"{key:<{w}}"
         line += "".join(f"{e[a]['rms_deg']:8.3f}" for a in ("roll", "pitch", "heading")) + "  "
         line += "".join(f"{e[a]['max_abs_deg']:8.3f}" for a in ("roll", "pitch", "heading")) + "  "
         if has_closure:
@@ -110,11 +112,12 @@ def main(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")
     route = load_route(args.route)
-    names = list(dict.fromkeys(args.estimator or [n for n in DEFAULT_ESTIMATORS if n != BASELINE]))
-    if not args.no_baseline and BASELINE not in names:
-        names.append(BASELINE)
+    specs = [estimator_spec(s) for s in dict.fromkeys(args.estimator or
+                                                       [n for n in DEFAULT_ESTIMATORS if n != BASELINE])]
+    if not args.no_baseline and BASELINE not in {s.key for s in specs}:
+        specs.append(estimator_spec(BASELINE))
     out = Path(args.out or Path("out") / route.name)
-    sim = CoSimulation(route, duration_s=args.duration, seed=args.seed, estimators=names,
+    sim = CoSimulation(route, duration_s=args.duration, seed=args.seed, estimators=specs,
                        sensor_profile=args.sensor_profile or DEFAULT_SENSOR_PROFILE,
                        gyro_calibration_s=args.gyro_calibration, navigators=args.navigator)
     out.mkdir(parents=True, exist_ok=True)

@@ -235,8 +235,20 @@ def _as_rows_input(name: str, value: Any, k: int) -> np.ndarray:
     return a
 
 
+def _as_increments_input(name: str, value: Any, k: int) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a real array of shape ({k}, m, 3), got {type(value).__name__}") from None
+    if a.ndim != 3 or a.shape[0] != k or a.shape[2] != 3 or a.shape[1] < 1:
+        raise ValueError(f"{name} must have shape ({k}, m, 3) like the samples (m increments per sample), "
+                         f"got {a.shape}")
+    return np.ascontiguousarray(a)
+
+
 INPUTS: dict[str, tuple[Any, Any]] = {
     "imu_flags": (as_imu_flags, lambda: np.empty(0, dtype=np.int64)),
+    "dtheta_b": (_as_increments_input, lambda: np.empty((0, 1, 3))),
     "speed_mps": (_as_series_input, lambda: np.empty(0)),
     "velocity_enu_mps": (_as_rows_input, lambda: np.empty((0, 3))),
 }
@@ -247,7 +259,10 @@ function(name, value, k) → array, the empty array the kernel gets when it is n
   gyro / accelerometer saturated, AK8963 overflow, magnetometer data invalid), e.g.
   ``ImuSamples.flags`` or the ``imu_flags`` column of a run's log;
 * ``speed_mps`` (k,) float: forward speed of the vehicle (wheel odometry or GNSS), NaN = unknown;
-* ``velocity_enu_mps`` (k, 3) float: velocity over the ground in ENU (for the transport rate).
+* ``velocity_enu_mps`` (k, 3) float: velocity over the ground in ENU (for the transport rate);
+* ``dtheta_b`` (k, m, 3) float: the gyro's increments over each sample interval, body axes, in
+  the form of a coning algorithm of ``biso_cosim.strapdown`` (sub-interval increments or
+  multiple integrals; ``ImuSamples.dtheta_sub`` / ``dtheta``), for ``gyro_step``.
 """
 
 

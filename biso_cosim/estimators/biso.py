@@ -78,6 +78,7 @@ from biso_cosim.estimators._base import (
 from biso_cosim.estimators._kernels import _input_checks, _qexp_fast
 from biso_cosim.estimators.reference import REFERENCE_METHODS, _reference
 from biso_cosim.frames import Q_FLU_FUR, Q_NUE_ENU, _qexp_rotvec, _qmul
+from biso_cosim.strapdown.algorithms import check_rows, get_algorithm, list_algorithms, rotation_vector
 
 __all__ = [
     "BisoParams",
@@ -179,6 +180,14 @@ class BisoParams:
         0.0, symbol="h", unit="m",
         doc="height above the WGS-84 ellipsoid, for the radii of curvature in the transport rate",
         source="eq. (1)")
+    gyro_step: str = param(
+        "hold", symbol="Φ", unit="",
+        doc="attitude propagation over each sample interval: 'hold' (the gyro sample held over the "
+            "interval, integrated exactly) or a coning algorithm of biso_cosim.strapdown ('one_sample', "
+            "'two_sample', 'traditional3', 'traditional3_miller', 'smoothing', 'invariant'): the rotation "
+            "vector Φ = ΔΘ + δΘ_c of the sensor's increments (input dtheta_b, in that algorithm's form) "
+            "takes the place of ω h",
+        source="Litmanovich (2002) eq. (1.11)")
     stability_rate_rad_s: float = param(
         5.0, symbol="|ω|max", unit="rad/s",
         doc="largest body rate at which non-equal gains or pattern 13 must keep all "
@@ -331,6 +340,7 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
     norm_gain = check_finite("norm_gain", params.norm_gain, low=0.0)
     altitude = check_finite("altitude_m", params.altitude_m, low=-1.0e4, high=1.0e6)
     check_finite("stability_rate_rad_s", params.stability_rate_rad_s, low=0.0)
+    gyro_step_algorithm(params)
     glim, alim = saturation_limits(params)
     g_gost = correction_matrix(params)
     k, kp = _resolved_gains(params)
@@ -618,18 +628,42 @@ def biso_initial_state(q0: np.ndarray | None) -> np.ndarray:
     return st
 
 
+def gyro_step_algorithm(params: BisoParams):
+    """The strapdown coning algorithm of ``gyro_step`` (``AlgorithmInfo``), None for 'hold'."""
+    if params.gyro_step == "hold":
+        return None
+    try:
+        return get_algorithm("coning", params.gyro_step)
+    except (TypeError, ValueError):
+        names = ", ".join(["hold"] + [a.name for a in list_algorithms("coning")])
+        raise ValueError(f"gyro_step must be one of {names}; got {params.gyro_step!r}") from None
+
+
+def rates_from_increments(step, dtheta_b: np.ndarray, gyro_b: np.ndarray, h: float) -> np.ndarray:
+    """The rate the kernel integrates over each interval, Φ/h with Φ = ΔΘ + δΘ_c (Litmanovich
+    2002, eq. (1.11)): held over the interval it turns λ by exactly Φ. Samples with non-finite
+    increments keep their gyro reading (which then follows the gyro policy)."""
+    out = np.array(gyro_b, dtype=np.float64, copy=True)
+    ok = np.isfinite(dtheta_b).all(axis=(1, 2))
+    if ok.any():
+        out[ok] = rotation_vector(step.name, dtheta_b[ok], h) / h
+    return out
+
+
 class BisoEstimator(Estimator):
     """The faithful BISO estimator (see the module docstring). Build it with
     ``make_estimator("biso", fs_hz, **params)``; ``"positional"`` (k_p = 0) and
     ``"poisson"`` (no correction, eq. (2)) are the same class with fixed gains.
 
-    Optional per-sample inputs: ``imu_flags`` (the sensor's flags: saturation, overflow) and
-    ``velocity_enu_mps`` (k, 3) for the transport rate (needs ``latitude_rad``)."""
+    Optional per-sample inputs: ``imu_flags`` (the sensor's flags: saturation, overflow),
+    ``velocity_enu_mps`` (k, 3) for the transport rate (needs ``latitude_rad``) and
+    ``dtheta_b`` (k, m, 3), the gyro's increments, required by a ``gyro_step`` other than
+    'hold'. A sample whose increments are not finite falls back to its gyro reading."""
 
     method = "biso"
     Params = BisoParams
     state_layout = STATE_LAYOUT
-    inputs = ("imu_flags", "velocity_enu_mps")
+    inputs = ("imu_flags", "velocity_enu_mps", "dtheta_b")
 
     def _coefficients(self, params: BisoParams, fs_hz: float) -> np.ndarray:
         return biso_coefficients(params, fs_hz)
@@ -641,9 +675,22 @@ class BisoEstimator(Estimator):
         if inputs.get("velocity_enu_mps") is not None and self._params.latitude_rad is None:
             raise ValueError("velocity_enu_mps gives the transport rate, which needs latitude_rad "
                              "(set it with set_params, or leave the velocity out)")
-        return super()._extra_inputs(inputs, k)
+        extra = super()._extra_inputs(inputs, k)
+        step = gyro_step_algorithm(self._params)
+        if step is None:
+            if inputs.get("dtheta_b") is not None:
+                raise ValueError("dtheta_b is used by gyro_step only; with gyro_step='hold' leave it out")
+        elif inputs.get("dtheta_b") is None:
+            raise ValueError(f"gyro_step={step.name!r} needs the gyro increments: pass dtheta_b ({k}, m, 3) "
+                             f"({step.input_description})")
+        else:
+            check_rows(step, "dtheta_b", extra["dtheta_b"].shape[1], step.m_dtheta, "ΔΘ")
+        return extra
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
+        step = gyro_step_algorithm(self._params)
+        if step is not None:
+            gyro = rates_from_increments(step, extra["dtheta_b"], gyro, 1.0 / self.fs_hz)
         if not hasattr(self, "_scratch"):
             self._scratch = np.empty((_BLOCK, _BUF_COLS))
         _biso_batch(coef, state, gyro, accel, mag, extra["imu_flags"], extra["velocity_enu_mps"], q_out, flags,
