@@ -224,10 +224,6 @@ def as_imu_flags(name: str, value: Any, k: int) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.int64)
 
 
-def _as_series_input(name: str, value: Any, k: int) -> np.ndarray:
-    return as_series(name, value, k)
-
-
 def _as_rows_input(name: str, value: Any, k: int) -> np.ndarray:
     a = _as_rows(name, value, 3)
     if a.shape[0] != k:
@@ -249,7 +245,7 @@ def _as_increments_input(name: str, value: Any, k: int) -> np.ndarray:
 INPUTS: dict[str, tuple[Any, Any]] = {
     "imu_flags": (as_imu_flags, lambda: np.empty(0, dtype=np.int64)),
     "dtheta_b": (_as_increments_input, lambda: np.empty((0, 1, 3))),
-    "speed_mps": (_as_series_input, lambda: np.empty(0)),
+    "speed_mps": (as_series, lambda: np.empty(0)),
     "velocity_enu_mps": (_as_rows_input, lambda: np.empty((0, 3))),
 }
 """The optional per-sample inputs an estimator may list in ``inputs``: name → (checking
