@@ -3,8 +3,9 @@
 For each route: the wall time of the full co-simulation (driver, physics, virtual MPU-9250,
 the estimators, logging) and of bare ``mj_step`` calls over the same number of steps with
 the same model, from the same settled start, replaying the same actuator commands (so the
-physics does the same work), in the same process; and their ratio. Also the share of each
-layer, timed separately over one run.
+physics does the same work), in the same process; and their ratio (``ratio``; ``r nstep``
+against one ``mj_step(model, data, nstep)`` call per control period, the stricter baseline).
+Also the share of each layer, timed separately over one run.
 
     python benchmarks/cosim_overhead.py                 # every shipped route, 60 s each
     python benchmarks/cosim_overhead.py --routes loop600 --duration 600
@@ -32,18 +33,25 @@ def record_controls(sim: CoSimulation) -> np.ndarray:
     return np.array(controls)
 
 
-def bare_steps(sim: CoSimulation, controls: np.ndarray) -> float:
-    """Step the same model from the same start with the same commands, nothing else."""
+def bare_steps(sim: CoSimulation, controls: np.ndarray, nstep: bool = False) -> float:
+    """Step the same model from the same start with the same commands, nothing else: one
+    ``mj_step`` call per physics step, or with ``nstep`` one ``mj_step(model, data, nstep)``
+    call per control period (as Gymnasium's MuJoCo environments step)."""
     vehicle = sim.vehicle
     vehicle.reset()
     model, data = vehicle.model, vehicle.data
     per = vehicle.steps_per_control
     step = mujoco.mj_step
     start = time.perf_counter()
-    for ctrl in controls:
-        data.ctrl[:] = ctrl
-        for _ in range(per):
-            step(model, data)
+    if nstep:
+        for ctrl in controls:
+            data.ctrl[:] = ctrl
+            step(model, data, per)
+    else:
+        for ctrl in controls:
+            data.ctrl[:] = ctrl
+            for _ in range(per):
+                step(model, data)
     return time.perf_counter() - start
 
 
@@ -83,19 +91,22 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=60.0, help="simulated seconds per route")
     parser.add_argument("--repeat", type=int, default=3, help="repetitions; the best of each is kept")
     args = parser.parse_args()
-    print(f"{'route':<10} {'steps':>8} {'cosim s':>9} {'bare s':>9} {'ratio':>7} {'µs/step':>8} {'bare µs':>8}")
+    print(f"{'route':<10} {'steps':>8} {'cosim s':>9} {'bare s':>9} {'nstep s':>9} {'ratio':>7} {'r nstep':>8} "
+          f"{'µs/step':>8} {'bare µs':>8}")
     for name in args.routes:
         sim = CoSimulation(name, duration_s=args.duration, seed=0)
         controls = record_controls(sim)  # also compiles the kernels and warms the caches
         n_steps = sim.n_chunks * sim.vehicle.steps_per_control
-        best_cosim, best_bare = float("inf"), float("inf")
+        best_cosim, best_bare, best_nstep = float("inf"), float("inf"), float("inf")
         for _ in range(args.repeat):
             sim.reset()
             start = time.perf_counter()
             sim.run()
             best_cosim = min(best_cosim, time.perf_counter() - start)
             best_bare = min(best_bare, bare_steps(sim, controls))
-        print(f"{name:<10} {n_steps:>8} {best_cosim:>9.3f} {best_bare:>9.3f} {best_cosim / best_bare:>7.3f} "
+            best_nstep = min(best_nstep, bare_steps(sim, controls, nstep=True))
+        print(f"{name:<10} {n_steps:>8} {best_cosim:>9.3f} {best_bare:>9.3f} {best_nstep:>9.3f} "
+              f"{best_cosim / best_bare:>7.3f} {best_cosim / best_nstep:>8.3f} "
               f"{best_cosim / n_steps * 1e6:>8.2f} {best_bare / n_steps * 1e6:>8.2f}")
         spent = layers(sim)
         total = sum(spent.values())

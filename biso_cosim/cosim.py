@@ -189,6 +189,10 @@ class CoSimulation:
         ``NAVIGATOR_PRESETS`` or ``(label, {"coning": ..., "sculling": ..., "position": ...})``.
         They show how fast each algorithm family drifts on the car (no aiding at all).
     physics_rate_hz, control_rate_hz : MuJoCo step rate and driver rate (a whole multiple).
+    keep_log : keep every period's truth, sensor samples, estimates and navigation for
+        :meth:`result` (the default). Users that take each period's outputs from :meth:`step`
+        (the environments, the FMUs) pass False: memory then stays constant however long the
+        run, ``run()`` returns None and ``result()`` is refused.
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
@@ -196,7 +200,7 @@ class CoSimulation:
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, registers: Mapping[str, int] | None = None,
                  mounting: Any = None, gyro_calibration_s: float = 0.0, gnss: Any = "auto",
                  gnss_rate_hz: float = 5.0, navigators: Iterable = (), physics_rate_hz: float = 1000.0,
-                 control_rate_hz: float = 50.0):
+                 control_rate_hz: float = 50.0, keep_log: bool = True):
         self.route = load_route(route)
         if duration_s is None:
             duration_s = math.ceil(self.route.nominal_duration_s + 10.0)
@@ -207,6 +211,9 @@ class CoSimulation:
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
         if not (isinstance(gyro_calibration_s, (int, float)) and 0.0 <= gyro_calibration_s <= 60.0):
             raise ValueError(f"gyro_calibration_s must be in [0, 60] s, got {gyro_calibration_s!r}")
+        if not isinstance(keep_log, bool):
+            raise TypeError(f"keep_log must be True or False, got {keep_log!r}")
+        self.keep_log = keep_log
         self.duration_s = float(duration_s)
         self.seed = int(seed)
         self.gyro_calibration_s = float(gyro_calibration_s)
@@ -355,6 +362,7 @@ class CoSimulation:
         """
         n = int(round(self.gyro_calibration_s * self.vehicle.physics_rate_hz))
         self.gyro_offset_b = np.zeros(3)
+        self._has_gyro_offset = False
         self._imu_t0_s = n / self.vehicle.physics_rate_hz
         if n == 0:
             return
@@ -364,6 +372,7 @@ class CoSimulation:
         samples = self.imu.simulate(parked.omega_b, parked.specific_force_b, mag_b,
                                     increments=self._increment_orders, subintervals=self._subintervals)
         self.gyro_offset_b = samples.gyro_b.mean(axis=0)
+        self._has_gyro_offset = bool(self.gyro_offset_b.any())
 
     # ------------------------------------------------------------------ whole state
     def get_state(self) -> "CoSimState":
@@ -474,8 +483,9 @@ class CoSimulation:
             vehicle.observe_route()
             vehicle.apply(command)
         truth = vehicle.step()
-        self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
-        self._log["progress_m"].append(vehicle.driver.state.s_m)
+        if self.keep_log:
+            self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
+            self._log["progress_m"].append(vehicle.driver.state.s_m)
         self._chunks_done += 1
         if self._finished_chunk is None and vehicle.driver.finished:
             self._finished_chunk = self._chunks_done
@@ -486,15 +496,17 @@ class CoSimulation:
         mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
         samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b,
                                     increments=self._increment_orders, subintervals=self._subintervals)
-        samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
+        if self._imu_t0_s:
+            samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
         self._remove_gyro_offset(samples)
         at_samples = self._truth_at(samples.t_s, truth)
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
-            self._log["gnss"].append(fixes)
         for label, nav in self.navigators.items():
-            self._nav_log[label].append(self._navigate(nav, samples))
+            navigated = self._navigate(nav, samples)
+            if self.keep_log:
+                self._nav_log[label].append(navigated)
         outputs = {}
         for key, est in self.estimators.items():
             inputs = getattr(est, "inputs", ())
@@ -509,13 +521,16 @@ class CoSimulation:
                 form, m = self._dtheta_forms[key]
                 extra["dtheta_b"] = samples.dtheta[:, :m] if form == "multiple" else samples.dtheta_sub
             outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
-        self._log["truth"].append(at_samples)
-        self._log["imu"].append(samples)
-        for key, out in outputs.items():
-            self._est_log[key].append(out)
+        if self.keep_log:
+            self._log["truth"].append(at_samples)
+            self._log["imu"].append(samples)
+            if fixes is not None:
+                self._log["gnss"].append(fixes)
+            for key, out in outputs.items():
+                self._est_log[key].append(out)
         return samples, at_samples, outputs
 
-    def run(self, progress: bool = False, block_periods: int | None = None) -> "RunResult":
+    def run(self, progress: bool = False, block_periods: int | None = None) -> "RunResult | None":
         """Run to ``duration_s`` from wherever the simulation stands; the whole log so far.
 
         The driver and the physics advance one control period at a time; the sensor and the
@@ -524,6 +539,7 @@ class CoSimulation:
         so the results are the same bit for bit as with ``step()``, in a tenth of the Python
         calls. Default: 10 periods, or 1 when a user's estimator is in the loop (it is called
         once per control period, as documented, in case it is not chunk-invariant).
+        With ``keep_log=False`` it returns None.
         """
         if block_periods is None:
             block_periods = 1 if any(isinstance(e, _UserEstimator) for e in self.estimators.values()) else 10
@@ -550,9 +566,12 @@ class CoSimulation:
                 self._sense(Truth.concatenate(block))
             if bar is not None:
                 bar.close()
-        return self.result(wall_time_s=time.perf_counter() - start)
+        return self.result(wall_time_s=time.perf_counter() - start) if self.keep_log else None
 
     def result(self, wall_time_s: float = float("nan")) -> "RunResult":
+        if not self.keep_log:
+            raise RuntimeError("result(): this co-simulation keeps no log (keep_log=False); take the outputs "
+                               "of each period from step()")
         truth = Truth.concatenate(self._log["truth"]) if self._log["truth"] else None
         if truth is None or len(truth) == 0:
             raise RuntimeError("run() or step() first: nothing has been simulated yet")
@@ -587,7 +606,7 @@ class CoSimulation:
     def _remove_gyro_offset(self, samples: ImuSamples) -> None:
         """Subtract the start-up gyro offset from the readings and from the increments: the
         r-fold integral of a constant c over T is c·T^r/r!, each of m sub-intervals c·T/m."""
-        if not self.gyro_offset_b.any():
+        if not self._has_gyro_offset:
             return
         samples.gyro_b -= self.gyro_offset_b
         T = 1.0 / self.imu.output_rate_hz
@@ -609,12 +628,13 @@ class CoSimulation:
     def _truth_at(self, t_s: np.ndarray, chunk: Truth) -> Truth:
         """Truth at the sensor's time stamps, which lie between the previous chunk's last row
         and this chunk's last row."""
-        rows = chunk if self._last_truth_row is None else Truth.concatenate([self._last_truth_row, chunk])
-        self._last_truth_row = chunk[-1:]
-        if t_s.shape[0] and (t_s[0] < rows.t_s[0] - 1e-9 or t_s[-1] > rows.t_s[-1] + 1e-9):
+        before, self._last_truth_row = self._last_truth_row, chunk[-1:]
+        first = chunk if before is None else before
+        if t_s.shape[0] and (t_s[0] < first.packed[0, 0] - 1e-9 or t_s[-1] > chunk.packed[-1, 0] + 1e-9):
             raise RuntimeError(f"sensor time stamps {t_s[0]:.6f}…{t_s[-1]:.6f} s lie outside the physics rows "
-                               f"{rows.t_s[0]:.6f}…{rows.t_s[-1]:.6f} s: the sensor and the physics are out of step")
-        return rows.at(t_s, self.vehicle.physics_rate_hz)
+                               f"{first.packed[0, 0]:.6f}…{chunk.packed[-1, 0]:.6f} s: the sensor and the physics "
+                               f"are out of step")
+        return chunk.at(t_s, self.vehicle.physics_rate_hz, before)
 
 
 @dataclass

@@ -48,7 +48,7 @@ class VehicleSlave(BisoSlave):
             estimators=[EstimatorSpec(self.name, params)], sensor_profile=values["sensor.profile"],
             registers=registers, mounting=self.mounting_quaternion(),
             gyro_calibration_s=values["sensor.gyro_calibration_s"],
-            physics_rate_hz=values["physics_rate_hz"], control_rate_hz=values["control_rate_hz"])
+            physics_rate_hz=values["physics_rate_hz"], control_rate_hz=values["control_rate_hz"], keep_log=False)
         self.est = self.sim.estimators[self.name]
         self.external = values["external_driver"]
 

@@ -329,3 +329,26 @@ def test_cli_estimator_specs_carry_parameters_and_labels(tmp_path, capsys):
     assert cli_main(["run", "--route", "figure8", "--duration", "2", "--out", str(out),
                      "--estimator", "biso:nope=1"]) == 2
     assert "no parameter(s) ['nope']" in capsys.readouterr().err
+
+
+def test_without_a_log_the_periods_are_the_same_and_memory_stays_constant():
+    """keep_log=False (environments, FMUs): step() returns the same outputs bit for bit, the
+    log stays empty, result() is refused with the reason and run() returns None."""
+    logged = CoSimulation("figure8", duration_s=1.0, seed=3)
+    bare = CoSimulation("figure8", duration_s=1.0, seed=3, keep_log=False)
+    for _ in range(10):
+        a, b = logged.step(), bare.step()
+        np.testing.assert_array_equal(a[0].gyro_b, b[0].gyro_b)
+        np.testing.assert_array_equal(a[1].packed, b[1].packed)
+        for key in a[2]:
+            np.testing.assert_array_equal(a[2][key].q_wb, b[2][key].q_wb)
+    assert all(n == 0 for n in bare._log_lengths().values())
+    with pytest.raises(RuntimeError, match="keep_log=False"):
+        bare.result()
+    assert bare.run() is None and bare.done
+    state = logged.get_state()
+    bare.reset()
+    bare.set_state(state)  # states move between logged and unlogged co-simulations
+    np.testing.assert_array_equal(logged.step()[0].accel_b, bare.step()[0].accel_b)
+    with pytest.raises(TypeError, match="keep_log"):
+        CoSimulation("figure8", duration_s=1.0, keep_log=1)

@@ -21,6 +21,15 @@ from biso_cosim.routes import parse_route
 SHORT = {"episode_duration_s": 1.5}
 
 
+def capture_periods(core) -> list:
+    """The co-simulation's outputs (samples, truth, estimates) of every period from now on:
+    an environment keeps no log."""
+    periods = []
+    sim_step = core.sim.step
+    core.sim.step = lambda command=None: periods.append(sim_step(command)) or periods[-1]
+    return periods
+
+
 def straight_route(length_m=60.0, speed_mps=6.0):
     """An open straight road east, on flat ground."""
     return parse_route({
@@ -117,13 +126,14 @@ def test_gnss_part_holds_the_receivers_newest_fix():
     for profile in ("consumer", "ideal"):
         env = gym.make("biso_cosim/AttitudeEstimation-v0", gnss_rate_hz=5.0, gnss_profile=profile,
                        episode_duration_s=2.0)
-        obs, info = env.reset(seed=8)
         core = env.unwrapped
+        periods = capture_periods(core)
+        obs, info = env.reset(seed=8)
         receiver = GnssReceiver(profile, seed=info["gnss_seed"], rate_hz=5.0, site=core.route.site,
                                 input_rate_hz=core.imu_rate_hz)
         delivered = 0
         while True:
-            truth = core.sim._log["truth"][-1]
+            truth = periods[-1][1]
             fixes = receiver.simulate(truth.pos_w, truth.vel_w)
             gnss = dict(zip(GNSS_FIELDS, core.split_observation(obs)["gnss"]))
             assert gnss["new"] == float(len(fixes) > 0)
@@ -199,11 +209,11 @@ def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
 def test_gain_tuning_reward_is_the_mean_error_over_the_step():
     env = gym.make("biso_cosim/GainTuning-v0", **SHORT)
     env.reset(seed=1)
-    core = env.unwrapped
+    periods = capture_periods(env.unwrapped)
     for _ in range(10):
         _, reward, _, _, info = env.step(np.array([0.3, -0.2]))
-        truth = core.sim._log["truth"][-1]
-        tuned = core.sim._est_log["tuned"][-1].q_wb
+        _, truth, outputs = periods[-1]
+        tuned = outputs["tuned"].q_wb
         total = 0.0
         for angle in quat_angle_between(tuned, truth.q_wb):
             total += angle
@@ -290,17 +300,18 @@ def test_dead_reckoning_matches_a_plain_reference():
     obs, info = env.reset(seed=3)
     core = env.unwrapped
     start = info["true_pose"][:2].copy()
+    periods = capture_periods(core)
     while True:
         obs, _, terminated, truncated, info = env.step(np.array([0.4, 0.0]))
         if terminated or truncated:
             break
-    run = core.sim.result()
-    q = run.estimates["estimator"][0]
+    q = np.concatenate([outputs["estimator"].q_wb for _, _, outputs in periods])
+    wheel_rates = np.concatenate([truth.wheel_rates for _, truth, _ in periods])
     radius = core.sim.vehicle.index.wheel_radius_m
     x, y = start
     for i in range(len(q)):
         w, qx, qy, qz = q[i]
-        v = 0.5 * (run.truth.wheel_rates[i, 0] + run.truth.wheel_rates[i, 1]) * radius
+        v = 0.5 * (wheel_rates[i, 0] + wheel_rates[i, 1]) * radius
         x += v * (1.0 - 2.0 * (qy * qy + qz * qz)) / core.imu_rate_hz
         y += v * 2.0 * (qx * qy + w * qz) / core.imu_rate_hz
     np.testing.assert_allclose(info["nav_pose"][:2], [x, y], rtol=0, atol=1e-6)  # summation order, cos(steering ≈ 0)

@@ -184,7 +184,9 @@ def test_bad_imu_flags_are_refused_and_lose_nothing(name):
     m, gyro, accel, mag = _clean(40)
     est, ref = make_estimator(name, 200.0), make_estimator(name, 200.0)
     for bad, err in (([1] * 39, ValueError), (np.full(40, -1), ValueError), (np.full(40, 0.5), ValueError),
-                     (np.array(["a"] * 40), TypeError)):
+                     (np.array(["a"] * 40), TypeError), (np.full(40, 2**31), ValueError),
+                     (np.full(40, 2**64 - 1, dtype=np.uint64), ValueError), (np.full(40, 2.0**31), ValueError),
+                     (np.full(40, -1, dtype=np.int8), ValueError)):
         with pytest.raises(err, match="imu_flags"):
             est.update(gyro, accel, mag, imu_flags=bad)
     ok = est.update(gyro, accel, mag, imu_flags=np.zeros(40))  # whole floats (a CSV column) are fine

@@ -175,3 +175,47 @@ def test_chunked_stepping_is_deterministic_and_time_stamped():
     assert ta.t_s[0] == 0.0
     a.reset()
     np.testing.assert_array_equal(drive(a, 3.0).specific_force_b, ta.specific_force_b)
+
+
+def test_a_control_period_in_the_rollout_equals_mj_step_calls_bit_for_bit():
+    """``step`` runs a period in MuJoCo's C rollout: the same sensor rows and the same final
+    state as a Python loop of ``mj_step`` with the controls held, for whole and odd-sized periods."""
+    route = circle_route(20.0, 6.0, laps=1)
+    a, b = VehicleSim(route), VehicleSim(route)
+    size = mujoco.mj_stateSize(a.model, mujoco.mjtState.mjSTATE_INTEGRATION)
+    for n in (None, None, 7, 20, 1, 33):
+        a.drive()
+        b.drive()
+        truth = a.step(n)
+        rows = []
+        for _ in range(b.steps_per_control if n is None else n):
+            mujoco.mj_step(b.model, b.data)
+            rows.append(b.data.sensordata.copy())
+        b.steps_done += len(rows)
+        np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), b.steps_done - len(rows)).packed)
+        sa, sb = np.empty(size), np.empty(size)
+        mujoco.mj_getState(a.model, a.data, sa, mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_getState(b.model, b.data, sb, mujoco.mjtState.mjSTATE_INTEGRATION)
+        np.testing.assert_array_equal(sa, sb)
+        np.testing.assert_array_equal(a.data.sensordata, b.data.sensordata)
+
+
+def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monkeypatch):
+    """MuJoCo's rollout stops at a warning; the period is then stepped again one mj_step at a
+    time, so the rows are those of plain mj_step calls (here MuJoCo resets a diverged state)."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
+    route = circle_route(20.0, 6.0, laps=1)
+    a, b = VehicleSim(route), VehicleSim(route)
+    for sim in (a, b):
+        sim.drive()
+        sim.data.qvel[0] = 1e11  # beyond mjMAXVAL: the next mj_step warns and resets the data
+    truth = a.step()
+    rows = []
+    for _ in range(b.steps_per_control):
+        mujoco.mj_step(b.model, b.data)
+        rows.append(b.data.sensordata.copy())
+    np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), 0).packed)
+    assert a.periods_with_warnings == 1
+    a.reset()
+    drive(a, 2.0)
+    assert a.periods_with_warnings == 0

@@ -217,11 +217,18 @@ def as_imu_flags(name: str, value: Any, k: int) -> np.ndarray:
     if a.dtype.kind == "f":
         if not np.all(np.isfinite(a)) or not np.all(a == np.round(a)):
             raise ValueError(f"{name} must hold whole numbers (flag bits), got non-integral values")
+        if a.size and (a.min() < 0 or a.max() >= 2 ** 31):  # before the cast, which could wrap
+            raise ValueError(f"{name} must hold flag bits in [0, 2**31), got values from {a.min()} to {a.max()}")
     elif a.dtype.kind not in "biu":
         raise TypeError(f"{name} must be an array of integers (flag bits), got dtype {a.dtype}")
-    if a.size and (a.min() < 0 or a.max() >= 2 ** 31):
+    elif a.dtype.kind == "u" and a.dtype.itemsize == 8 and a.size and a.max() >= 2 ** 31:
+        raise ValueError(f"{name} must hold flag bits in [0, 2**31), got values up to {a.max()}")
+    flags = np.ascontiguousarray(a, dtype=np.int64)
+    # one reduction (this runs every control period): a value is outside [0, 2**31) exactly
+    # when a bit from 31 up is set, the sign bit included
+    if flags.size and np.bitwise_or.reduce(flags) >> 31:
         raise ValueError(f"{name} must hold flag bits in [0, 2**31), got values from {a.min()} to {a.max()}")
-    return np.ascontiguousarray(a, dtype=np.int64)
+    return flags
 
 
 def _as_rows_input(name: str, value: Any, k: int) -> np.ndarray:
@@ -389,7 +396,7 @@ class Estimator:
 
     def _extra_inputs(self, inputs: dict[str, Any], k: int) -> dict[str, np.ndarray]:
         """Check the optional inputs (raises before anything changes): name → array."""
-        unknown = sorted(set(inputs) - set(self.inputs))
+        unknown = sorted(inputs.keys() - self.inputs)
         if unknown:
             known = list(self.inputs) or "none"
             raise TypeError(f"{self.method} does not take input(s) {unknown}; optional inputs: {known}")

@@ -115,6 +115,8 @@ _PATTERNS = {
 
 
 def _gains_tuple(name: str, value: Any) -> tuple[float, ...]:
+    if type(value) in (float, int):  # the common case without numpy (GainTuning sets gains every step)
+        return (check_finite(name, value, low=0.0),) * 4
     arr = np.atleast_1d(np.asarray(value, dtype=np.float64))
     if arr.shape not in ((1,), (4,)):
         raise ValueError(f"{name} must be a number or 4 numbers (one per λ channel), got shape {arr.shape}")
@@ -217,13 +219,14 @@ def _resolved_gains(p: BisoParams) -> tuple[tuple[float, ...], tuple[float, ...]
     return k, kp
 
 
-def correction_matrix(params: BisoParams) -> np.ndarray:
-    """G of λ̇ = … + G(λ − λ_k) on the paper's λ components (4×4), reading applied."""
+def correction_matrix(params: BisoParams, gains: tuple | None = None) -> np.ndarray:
+    """G of λ̇ = … + G(λ − λ_k) on the paper's λ components (4×4), reading applied
+    (``gains``: the ``_resolved_gains`` of ``params`` when already at hand)."""
     if params.pattern not in _PATTERNS:
         raise ValueError(f"pattern must be 12 or 13 (the paper's equations), got {params.pattern!r}")
     if params.reading not in ("D", "L"):
         raise ValueError(f"reading must be 'D' or 'L', got {params.reading!r}")
-    k, kp = _resolved_gains(params)
+    k, kp = _resolved_gains(params) if gains is None else gains
     g = -np.diag(k) - _PATTERNS[params.pattern] * np.asarray(kp)[None, :]
     return 0.5 * g if params.reading == "L" else g
 
@@ -342,8 +345,8 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
     check_finite("stability_rate_rad_s", params.stability_rate_rad_s, low=0.0)
     gyro_step_algorithm(params)
     glim, alim = saturation_limits(params)
-    g_gost = correction_matrix(params)
     k, kp = _resolved_gains(params)
+    g_gost = correction_matrix(params, (k, kp))
     h = 1.0 / fs_hz
 
     equal = len(set(k)) == 1 and len(set(kp)) == 1
@@ -384,8 +387,11 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
     c[_C_NORM_E], c[_C_NORM_A] = e, (e - 1.0) / e
     c[_C_RENORM] = float(bool(params.renormalize))
     c[_C_K], c[_C_KP] = scale * k[0], scale * kp[0]
-    c[_C_EG:_C_EG + 4] = _qexp_rotvec(*(-wg * h))
-    c[_C_EGI:_C_EGI + 4] = _qexp_rotvec(*(wg * h))
+    if wg.any():
+        c[_C_EG:_C_EG + 4] = _qexp_rotvec(*(-wg * h))
+        c[_C_EGI:_C_EGI + 4] = _qexp_rotvec(*(wg * h))
+    else:  # no Earth or transport rate: the identity, without two kernel calls
+        c[_C_EG] = c[_C_EGI] = 1.0
     c[_C_WG:_C_WG + 3] = wg
     c[_C_G:_C_G + 16] = (_T_GOST.T @ g_gost @ _T_GOST).ravel()
     c[_C_GLIM], c[_C_ALIM] = glim, alim

@@ -124,11 +124,16 @@ class EarthField:
 
 
 @jit
-def _rotate_into_body(q_wb, field_w, out):
-    """out[k] = q_wb[k]* ∘ field_w ∘ q_wb[k] (the same world vector into each attitude)."""
+def _rotate_into_body(q_wb, p_w, field_w, out):
+    """out[k] = q_wb[k]* ∘ field_w ∘ q_wb[k] (the same world vector into each attitude).
+    Returns whether every position p_w[k] is finite (the field does not depend on them, but
+    a position that is not finite is refused like everywhere else)."""
+    finite = True
     for k in range(q_wb.shape[0]):
         out[k, 0], out[k, 1], out[k, 2] = _qrot_inv(q_wb[k, 0], q_wb[k, 1], q_wb[k, 2], q_wb[k, 3],
                                                     field_w[0], field_w[1], field_w[2])
+        finite &= math.isfinite(p_w[k, 0]) and math.isfinite(p_w[k, 1]) and math.isfinite(p_w[k, 2])
+    return finite
 
 
 def _points(p_w: Any, name: str = "p_w") -> tuple[np.ndarray, bool]:
@@ -261,11 +266,10 @@ class MagneticEnvironment:
             # the common case, once per control period in the loop: a constant world field,
             # rotated into each body attitude by one kernel call
             p = np.asarray(p_w, dtype=np.float64)
-            if p.shape != (q.shape[0], 3) or not np.isfinite(p).all():
+            out = np.empty((q.shape[0], 3))
+            if p.shape != (q.shape[0], 3) or not _rotate_into_body(q, p, self.earth.field_enu_ut, out):
                 _points(p_w)  # the error naming p_w
                 raise ValueError(f"p_w must have shape ({q.shape[0]}, 3), got {p.shape}")
-            out = np.empty((q.shape[0], 3))
-            _rotate_into_body(q, self.earth.field_enu_ut, out)
             return out
         field = self.field_w(p_w, t_s)
         return quat_rotate(q * np.array([1.0, -1.0, -1.0, -1.0]), field)

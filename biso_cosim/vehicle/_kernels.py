@@ -10,15 +10,24 @@ from biso_cosim._numba import jit
 from biso_cosim.routes._kernels import _locate
 
 
+@jit(inline="always")
+def _row_value(before, rows, i, c):
+    """Column c of row i of ``before`` followed by ``rows`` (without joining them)."""
+    nb = before.shape[0]
+    return before[i, c] if i < nb else rows[i - nb, c]
+
+
 @jit
-def _interpolate_rows(rows, t0_s, rate_hz, t_s, quat_col, out):
-    """Rows of ``rows`` (uniform in time from ``t0_s`` at ``rate_hz``) at the times ``t_s``.
+def _interpolate_rows(before, rows, t0_s, rate_hz, t_s, quat_col, out):
+    """Rows of ``before`` followed by ``rows`` (uniform in time from ``t0_s`` at ``rate_hz``;
+    ``before`` may be empty) at the times ``t_s``.
 
     Linear interpolation of every column except the quaternion at ``quat_col:quat_col+4``,
     which is interpolated on the shorter arc and normalised (nlerp: at 1 ms spacing it equals
     slerp to far below 1e-9 rad). Times outside the rows are clamped to the first/last row.
     """
-    n, width = rows.shape
+    n = before.shape[0] + rows.shape[0]
+    width = rows.shape[1]
     for k in range(t_s.shape[0]):
         pos = (t_s[k] - t0_s) * rate_hz
         lo = int(math.floor(pos + 1e-9))
@@ -29,19 +38,19 @@ def _interpolate_rows(rows, t0_s, rate_hz, t_s, quat_col, out):
         frac = pos - lo
         if frac < 1e-9 or lo == n - 1:
             for c in range(width):
-                out[k, c] = rows[lo, c]
+                out[k, c] = _row_value(before, rows, lo, c)
             continue
         if frac > 1.0:
             frac = 1.0
         for c in range(width):
-            out[k, c] = (1.0 - frac) * rows[lo, c] + frac * rows[lo + 1, c]
+            out[k, c] = (1.0 - frac) * _row_value(before, rows, lo, c) + frac * _row_value(before, rows, lo + 1, c)
         dot = 0.0
         for c in range(quat_col, quat_col + 4):
-            dot += rows[lo, c] * rows[lo + 1, c]
+            dot += _row_value(before, rows, lo, c) * _row_value(before, rows, lo + 1, c)
         sign = -1.0 if dot < 0.0 else 1.0
         norm = 0.0
         for c in range(quat_col, quat_col + 4):
-            v = (1.0 - frac) * rows[lo, c] + frac * sign * rows[lo + 1, c]
+            v = (1.0 - frac) * _row_value(before, rows, lo, c) + frac * sign * _row_value(before, rows, lo + 1, c)
             out[k, c] = v
             norm += v * v
         norm = math.sqrt(norm)

@@ -12,6 +12,7 @@ import math
 
 import mujoco
 import numpy as np
+from mujoco import rollout
 
 from biso_cosim.frames import _q_from_euler
 from biso_cosim.vehicle._kernels import _interpolate_rows, _pack_rows
@@ -25,6 +26,10 @@ __all__ = ["Truth", "VehicleSim"]
 # that the first samples show a car at rest rather than contacts finding their depth.
 _SETTLE_S = 3.0
 _SETTLED_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+# what MuJoCo's rollout restores before its steps (the warm start is passed separately) and
+# what it sets each step; ints, which the bindings take without an enum conversion per call
+_ROLLOUT_STATE = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+_CONTROL = int(mujoco.mjtState.mjSTATE_CTRL)
 
 
 def _columns(index: int | slice, doc: str) -> property:
@@ -72,14 +77,19 @@ class Truth:
             return Truth(np.empty((0, Truth.WIDTH)))
         return Truth(np.concatenate([p.packed for p in parts]))
 
-    def at(self, t_s: np.ndarray, rate_hz: float) -> "Truth":
+    def at(self, t_s: np.ndarray, rate_hz: float, before: "Truth | None" = None) -> "Truth":
         """The truth at times ``t_s`` within these rows (uniform at ``rate_hz``): vectors
-        interpolated linearly, the attitude on the shorter arc (nlerp)."""
+        interpolated linearly, the attitude on the shorter arc (nlerp). With ``before`` (the
+        row one step before these), the times may reach back to it."""
         out = np.empty((t_s.shape[0], self.WIDTH))
         if t_s.shape[0]:
-            _interpolate_rows(self.packed, float(self.packed[0, 0]), float(rate_hz),
-                              np.ascontiguousarray(t_s, dtype=np.float64), self.QUAT_COLUMN, out)
+            first = self.packed if before is None else before.packed
+            _interpolate_rows(_NO_ROWS if before is None else before.packed, self.packed, float(first[0, 0]),
+                              float(rate_hz), np.ascontiguousarray(t_s, dtype=np.float64), self.QUAT_COLUMN, out)
         return Truth(out)
+
+
+_NO_ROWS = np.empty((0, Truth.WIDTH))
 
 
 class VehicleSim:
@@ -110,10 +120,10 @@ class VehicleSim:
             brake_kv=params["brake_kv_nms_per_rad"],
             max_brake_torque_nm=params["max_brake_torque_per_wheel_nm"],
             max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params)
-        self._buffer = np.empty((self.steps_per_control, self.model.nsensordata))
-        # a view of MuJoCo's sensor buffer, taken once: reading data.sensordata builds a new
-        # array object each time (about 1 µs), and the buffer never moves
-        self._sensordata = self.data.sensordata
+        # the steps of a control period run in MuJoCo's C rollout, which records sensordata
+        # after every step (no Python per physics step); its arrays are allocated once
+        self._rollout = rollout.Rollout(nthread=0)
+        self._rollout_io = self._rollout_arrays(self.steps_per_control)
         ix = self.index
         # sensordata columns of Truth's columns 1..22, in order
         self._settled: tuple[np.ndarray, np.ndarray] | None = None
@@ -150,6 +160,7 @@ class VehicleSim:
             mujoco.mj_setState(m, d, self._settled[0], _SETTLED_STATE)
             d.sensordata[:] = self._settled[1]
         self.steps_done = 0
+        self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``step``)
         self.driver.reset()
 
     # ------------------------------------------------------------------ stepping
@@ -182,17 +193,40 @@ class VehicleSim:
         self.driver.track(axle)
 
     def step(self, n: int | None = None) -> Truth:
-        """Advance ``n`` physics steps (default: one control period); truth of those steps."""
-        m, d, sensordata = self.model, self.data, self._sensordata
+        """Advance ``n`` physics steps (default: one control period) with the controls held;
+        truth of those steps. The same steps as ``n`` calls of ``mj_step``, bit for bit."""
+        m, d = self.model, self.data
         n = self.steps_per_control if n is None else n
-        buf = self._buffer if n == self._buffer.shape[0] else np.empty((n, m.nsensordata))
-        step = mujoco.mj_step
-        for k in range(n):
-            step(m, d)
-            buf[k] = sensordata
+        io = self._rollout_io if n == self._rollout_io[2].shape[1] else self._rollout_arrays(n)
+        state0, warmstart, control, sensordata = io
+        mujoco.mj_getState(m, d, state0[0], _ROLLOUT_STATE)
+        warmstart[0] = d.qacc_warmstart
+        control[0] = d.ctrl
+        t_end_s, dt_s = d.time, m.opt.timestep
+        for _ in range(n):  # the clock as mj_step advances it
+            t_end_s += dt_s
+        self._rollout.rollout([m], [d], state0, control, control_spec=_CONTROL, skip_checks=True, nstep=n,
+                              initial_warmstart=warmstart, state=None, sensordata=sensordata)
+        if d.time != t_end_s:
+            # the rollout stops at a MuJoCo warning (e.g. a bad velocity, on which MuJoCo resets
+            # the data and goes on): the period again from its start, one mj_step at a time
+            self.periods_with_warnings += 1
+            mujoco.mj_setState(m, d, state0[0], _ROLLOUT_STATE)
+            d.qacc_warmstart[:] = warmstart[0]
+            rows = sensordata[0]
+            for k in range(n):
+                mujoco.mj_step(m, d)
+                rows[k] = d.sensordata
         first = self.steps_done
         self.steps_done += n
-        return self._truth(buf, first)
+        return self._truth(sensordata[0], first)
+
+    def _rollout_arrays(self, n: int) -> tuple[np.ndarray, ...]:
+        """Input and output arrays of a rollout of ``n`` steps: initial state, warm start,
+        controls, sensordata (batch of one)."""
+        m = self.model
+        return (np.empty((1, mujoco.mj_stateSize(m, _ROLLOUT_STATE))), np.empty((1, m.nv)),
+                np.empty((1, n, m.nu)), np.empty((1, n, m.nsensordata)))
 
     def current_truth(self) -> Truth:
         """The truth of the current state as one row (at the time of the last step's start)."""
