@@ -36,33 +36,38 @@ SATURATION_FRACTION = 0.999
 # a division costs several multiplications and the divider is shared by the whole update).
 _C2, _C4, _C6, _C8 = 1.0 / 2.0, 1.0 / 24.0, 1.0 / 720.0, 1.0 / 40320.0
 _S2, _S4, _S6, _S8 = 1.0 / 6.0, 1.0 / 120.0, 1.0 / 5040.0, 1.0 / 362880.0
+# Below this x the terms in x² of both series are under 2⁻⁵⁴ (x²/24 < 2⁻⁵⁴ for x < 3.6e-8), less
+# than half an ulp of 1 − x/2 or 1 − x/6 ∈ (0.5, 1]: adding them does not change the rounded sum,
+# so the first-order form is the same number (|r| < 3.4e-4 rad: a correction step, a gyro step at rest).
+_X_FIRST = 3.0e-8
 
 
 @jit(inline="always")
 def _gyro_ok(x, y, z):
-    """Finite and |ω| < MAX_RATE."""
+    """Finite and |ω| < MAX_RATE (a NaN or an infinity fails the comparison: |ω|² is one then)."""
     n2 = x * x + y * y + z * z
-    return math.isfinite(n2) and n2 < MAX_RATE * MAX_RATE
+    return n2 < MAX_RATE * MAX_RATE
 
 
 @jit(inline="always")
 def _accel_ok(x, y, z):
-    """(ok, |f|²): finite and MIN_ACCEL < |f| < MAX_ACCEL."""
+    """(ok, |f|²): finite and MIN_ACCEL < |f| < MAX_ACCEL (as _gyro_ok: no separate finiteness test)."""
     n2 = x * x + y * y + z * z
-    return math.isfinite(n2) and n2 > MIN_ACCEL * MIN_ACCEL and n2 < MAX_ACCEL * MAX_ACCEL, n2
+    return n2 > MIN_ACCEL * MIN_ACCEL and n2 < MAX_ACCEL * MAX_ACCEL, n2
 
 
 @jit(inline="always")
 def _mag_ok(x, y, z):
-    """(ok, |m|²): finite and MIN_MAG < |m| < MAX_MAG."""
+    """(ok, |m|²): finite and MIN_MAG < |m| < MAX_MAG (as _gyro_ok)."""
     n2 = x * x + y * y + z * z
-    return math.isfinite(n2) and n2 > MIN_MAG * MIN_MAG and n2 < MAX_MAG * MAX_MAG, n2
+    return n2 > MIN_MAG * MIN_MAG and n2 < MAX_MAG * MAX_MAG, n2
 
 
 @jit(inline="always")
 def _beyond(x, y, z, limit):
-    """Any axis at or beyond ``limit`` (inf: never)."""
-    return abs(x) >= limit or abs(y) >= limit or abs(z) >= limit
+    """Any axis of a finite sample at or beyond ``limit`` (inf: never, and not tested: no full
+    scale declared is the common case)."""
+    return limit < math.inf and (abs(x) >= limit or abs(y) >= limit or abs(z) >= limit)
 
 
 @jit(inline="always")
@@ -117,10 +122,14 @@ def _input_checks(gx, gy, gz, ax, ay, az, mx, my, mz, hx, hy, hz, imu_flags, gyr
 def _qexp_fast(rx, ry, rz):
     """e^{(0, r)/2}: the rotation by |r| about r. For |r| ≤ 0.1 rad (every gyro step below
     20 rad/s at 200 Hz) a Taylor series to the 8th power is exact to rounding (next terms
-    < 3e-20) and needs no trigonometry; beyond, sin and cos."""
+    < 3e-20) and needs no trigonometry; beyond, sin and cos. Below |r| ≈ 3.4e-4 rad its
+    first-order part alone rounds to the same numbers (_X_FIRST)."""
     t2 = rx * rx + ry * ry + rz * rz
     if t2 <= 0.01:
         x = 0.25 * t2  # (|r|/2)²
+        if x <= _X_FIRST:  # the terms in x² change neither sum: the same numbers, sooner
+            s = 0.5 * (1.0 - x * _S2)
+            return 1.0 - x * _C2, s * rx, s * ry, s * rz
         x2 = x * x
         # Estrin's scheme: half the chain of dependent operations of Horner's
         c = (1.0 - x * _C2) + x2 * ((_C4 - x * _C6) + x2 * _C8)

@@ -360,68 +360,74 @@ def _unit(w, x, y, z):
     return w * n, x * n, y * n, z * n
 
 
-@jit
+@jit(error_model="numpy")
 def _offset_update(c, st, mx, my, mz):
     """One Kalman step of m = R_Ibᵀ B_I + o for x = (B_I, o), random walks on both.
 
-    R_Ib comes from the gyro strapdown q_I alone. The three components are processed as
-    scalar updates; an innovation beyond 5σ (a magnet nearby) skips the component.
+    R_Ib comes from the gyro strapdown q_I alone (``st`` holds q_I of this sample). The three
+    components are processed as scalar updates; an innovation beyond 5σ (a magnet nearby)
+    skips the component. Written out on the flat state: no reshape and no scratch array
+    (it runs every ``offset_n``-th sample inside the kernel's loop).
     """
     qw, qx, qy, qz = st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3]
-    p = st[_S_P:_S_P + 36].reshape((6, 6))
+    k = _S_P  # P (6×6, row-major, symmetric) at st[k + 6i + j]
     if st[_S_OFF_INIT] == 0.0:
         # start: B_I = R_Ib (m − o) with o ~ (0, σ_o² I): the field is known up to the offset
         st[_S_OFF_INIT] = 1.0
         st[_S_BI], st[_S_BI + 1], st[_S_BI + 2] = _qrot(qw, qx, qy, qz, mx, my, mz)
         r = _mat_from_q(qw, qx, qy, qz)
-        so = p[3, 3]
+        so = st[k + 21]  # P[3, 3]
         for i in range(3):
             for j in range(3):
-                p[i, j] = so if i == j else 0.0
-                p[i, 3 + j] = -so * r[3 * i + j]
-                p[3 + j, i] = -so * r[3 * i + j]
+                st[k + 6 * i + j] = so if i == j else 0.0
+                st[k + 6 * i + 3 + j] = -so * r[3 * i + j]
+                st[k + 6 * (3 + j) + i] = -so * r[3 * i + j]
         return
     for i in range(3):
-        p[i, i] += c[_C_Q_FIELD]
-        p[3 + i, 3 + i] += c[_C_Q_OFFSET]
+        st[k + 7 * i] += c[_C_Q_FIELD]
+        st[k + 7 * (3 + i)] += c[_C_Q_OFFSET]
     meas = (mx, my, mz)
-    ph = np.empty(6)
     for comp in range(3):
         ex = 1.0 if comp == 0 else 0.0
         ey = 1.0 if comp == 1 else 0.0
         ez = 1.0 if comp == 2 else 0.0
         rx, ry, rz = _qrot(qw, qx, qy, qz, ex, ey, ez)  # body axis `comp` in I: row of R_Ibᵀ
-        hrow = (rx, ry, rz, ex, ey, ez)
-        for i in range(6):
-            s = 0.0
-            for j in range(6):
-                s += p[i, j] * hrow[j]
-            ph[i] = s
-        den = c[_C_R_MAG]
-        for i in range(6):
-            den += hrow[i] * ph[i]
+        # P hᵀ for h = (rx, ry, rz, e_comp) summed in the order of the row; the terms with the zero
+        # entries of e_comp add exactly nothing (±0 to a sum that is not −0, having started at +0)
+        e = k + 3 + comp  # P[0, 3 + comp]
+        ph = (
+            0.0 + st[k] * rx + st[k + 1] * ry + st[k + 2] * rz + st[e],
+            0.0 + st[k + 6] * rx + st[k + 7] * ry + st[k + 8] * rz + st[e + 6],
+            0.0 + st[k + 12] * rx + st[k + 13] * ry + st[k + 14] * rz + st[e + 12],
+            0.0 + st[k + 18] * rx + st[k + 19] * ry + st[k + 20] * rz + st[e + 18],
+            0.0 + st[k + 24] * rx + st[k + 25] * ry + st[k + 26] * rz + st[e + 24],
+            0.0 + st[k + 30] * rx + st[k + 31] * ry + st[k + 32] * rz + st[e + 30],
+        )
+        den = c[_C_R_MAG] + rx * ph[0] + ry * ph[1] + rz * ph[2] + ph[3 + comp]
         r = meas[comp] - (rx * st[_S_BI] + ry * st[_S_BI + 1] + rz * st[_S_BI + 2] + st[_S_OFF + comp])
         if r * r > 25.0 * den:
             continue
         for i in range(3):
             st[_S_BI + i] += ph[i] * r / den
             st[_S_OFF + i] += ph[3 + i] * r / den
+        # P ← P − (P hᵀ)(P hᵀ)ᵀ/den; P is exactly symmetric (so is every update), so the new
+        # p_ij is also the new p_ji: the upper triangle, mirrored
         for i in range(6):
-            for j in range(6):
-                p[i, j] -= ph[i] * ph[j] / den
+            for j in range(i, 6):
+                v = st[k + 6 * i + j] - ph[i] * ph[j] / den
+                st[k + 6 * i + j] = v
+                st[k + 6 * j + i] = v
 
 
 @jit(inline="always")
-def _bias_update(c, st, hm, e0, e1, e2, w0, w1, w2):
-    """Kalman update of the gyro bias: measurement e = H (b − b̂) + noise, noise diag(w).
+def _bias_update(bx, by, bz, p00, p01, p02, p11, p12, p22, hm, e0, e1, e2, w0, w1, w2, lim):
+    """Kalman update of the gyro bias b̂ (covariance P, symmetric: its upper triangle):
+    measurement e = H (b − b̂) + noise, noise diag(w), each e clipped to ±lim.
 
-    ``hm`` is a 9-tuple (H row-major); written out in scalars, no allocation per sample.
+    ``hm`` is a 9-tuple (H row-major). Scalars in and out (the kernel keeps them in
+    registers): returns (updated, b̂, P upper triangle); unchanged if S is not positive.
     """
-    b = _S_BP
-    p00, p01, p02 = st[b], st[b + 1], st[b + 2]
-    p11, p12, p22 = st[b + 4], st[b + 5], st[b + 8]
     h00, h01, h02, h10, h11, h12, h20, h21, h22 = hm
-    lim = c[_C_BLIM]
     e0, e1, e2 = min(max(e0, -lim), lim), min(max(e1, -lim), lim), min(max(e2, -lim), lim)
     # A = P Hᵀ (column j = P h_j); P is kept symmetric, its upper triangle is read
     a00 = p00 * h00 + p01 * h01 + p02 * h02
@@ -449,7 +455,7 @@ def _bias_update(c, st, hm, e0, e1, e2, w0, w1, w2):
     i22 = s00 * s11 - s01 * s01
     det = s00 * i00 + s01 * i01 + s02 * i02
     if not (det > 0.0):
-        return
+        return False, bx, by, bz, p00, p01, p02, p11, p12, p22
     inv = 1.0 / det
     k00 = a00 * i00 + a01 * i01 + a02 * i02
     k01 = a00 * i01 + a01 * i11 + a02 * i12
@@ -460,19 +466,17 @@ def _bias_update(c, st, hm, e0, e1, e2, w0, w1, w2):
     k20 = a20 * i00 + a21 * i01 + a22 * i02
     k21 = a20 * i01 + a21 * i11 + a22 * i12
     k22 = a20 * i02 + a21 * i12 + a22 * i22
-    st[_S_BIAS] = min(max(st[_S_BIAS] + (k00 * e0 + k01 * e1 + k02 * e2) * inv, -lim), lim)
-    st[_S_BIAS + 1] = min(max(st[_S_BIAS + 1] + (k10 * e0 + k11 * e1 + k12 * e2) * inv, -lim), lim)
-    st[_S_BIAS + 2] = min(max(st[_S_BIAS + 2] + (k20 * e0 + k21 * e1 + k22 * e2) * inv, -lim), lim)
-    # P ← P − K (H P) = P − K Aᵀ (symmetric: the upper triangle, mirrored)
-    q01 = p01 - (k00 * a10 + k01 * a11 + k02 * a12) * inv
-    q02 = p02 - (k00 * a20 + k01 * a21 + k02 * a22) * inv
-    q12 = p12 - (k10 * a20 + k11 * a21 + k12 * a22) * inv
-    st[b] = p00 - (k00 * a00 + k01 * a01 + k02 * a02) * inv
-    st[b + 4] = p11 - (k10 * a10 + k11 * a11 + k12 * a12) * inv
-    st[b + 8] = p22 - (k20 * a20 + k21 * a21 + k22 * a22) * inv
-    st[b + 1] = st[b + 3] = q01
-    st[b + 2] = st[b + 6] = q02
-    st[b + 5] = st[b + 7] = q12
+    bx = min(max(bx + (k00 * e0 + k01 * e1 + k02 * e2) * inv, -lim), lim)
+    by = min(max(by + (k10 * e0 + k11 * e1 + k12 * e2) * inv, -lim), lim)
+    bz = min(max(bz + (k20 * e0 + k21 * e1 + k22 * e2) * inv, -lim), lim)
+    # P ← P − K (H P) = P − K Aᵀ
+    return (True, bx, by, bz,
+            p00 - (k00 * a00 + k01 * a01 + k02 * a02) * inv,
+            p01 - (k00 * a10 + k01 * a11 + k02 * a12) * inv,
+            p02 - (k00 * a20 + k01 * a21 + k02 * a22) * inv,
+            p11 - (k10 * a10 + k11 * a11 + k12 * a12) * inv,
+            p12 - (k10 * a20 + k11 * a21 + k12 * a22) * inv,
+            p22 - (k20 * a20 + k21 * a21 + k22 * a22) * inv)
 
 
 @jit
@@ -508,227 +512,306 @@ def _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, fn, mx, my, mz, acc_ok, mag_
     st[_S_VOK] = 1.0 if speed_given and math.isfinite(speed) else 0.0
 
 
-@jit(inline="always")
-def _biso_plus_step(c, st, gx, gy, gz, ax, ay, az, mx, my, mz, speed, speed_given, imu_flags):
-    """Advance the state by one sample; returns the sample's flags. Never raises."""
-    h = c[_C_H]
-    flags, gx, gy, gz, acc_ok, f2, mag_ok, _, _, _, _ = _input_checks(
-        gx, gy, gz, ax, ay, az, mx, my, mz, st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2], imu_flags,
-        c[_C_GRANGE], c[_C_ARANGE])
-    st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = gx, gy, gz
-    if st[_S_INIT] != 1.0:
-        if st[_S_INIT] == 0.0 and not acc_ok:
-            return flags | fl.UNINITIALIZED
-        _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, math.sqrt(f2), mx, my, mz, acc_ok, mag_ok, speed,
-                         speed_given)
-        return flags
-    st[_S_TIME] += h
-    t = st[_S_TIME]
-
-    # ---- gyro: bias-corrected strapdown of q_I over the interval (held rate)
-    bx, by, bz = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
-    wx, wy, wz = gx - bx, gy - by, gz - bz
-    eb = _qexp_fast(wx * h, wy * h, wz * h)
-    # |q ∘ e| = |q| for a unit e: the normalisation factor comes from q before the product,
-    # in parallel with e^{bh}, not after it on the chain of dependent operations
-    qiw, qix, qiy, qiz = _unit(st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3])
-    qiw, qix, qiy, qiz = _qmul(qiw, qix, qiy, qiz, eb[0], eb[1], eb[2], eb[3])
-    st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
-    qcw, qcx, qcy, qcz = st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3]
-    lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
-
-    # ---- speed: acceleration of the IMU from the speed v of the point r_v of the vehicle
-    a_v = c[_C_A_SPEED]
-    fs = c[_C_FS]
-    st[_S_WDOT] += a_v * ((wx - st[_S_WPREV]) * fs - st[_S_WDOT])
-    st[_S_WDOT + 1] += a_v * ((wy - st[_S_WPREV + 1]) * fs - st[_S_WDOT + 1])
-    st[_S_WDOT + 2] += a_v * ((wz - st[_S_WPREV + 2]) * fs - st[_S_WDOT + 2])
-    st[_S_WPREV], st[_S_WPREV + 1], st[_S_WPREV + 2] = wx, wy, wz
-    v_ok = speed_given and math.isfinite(speed)
-    comp_x = comp_y = comp_z = 0.0
-    if v_ok:
-        if st[_S_VOK] != 0.0:
-            st[_S_DVDT] += a_v * ((speed - st[_S_VPREV]) * fs - st[_S_DVDT])
-        st[_S_VPREV] = speed
-        # IMU velocity u = (v, 0, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
-        dx, dy, dz = -c[_C_RV], -c[_C_RV + 1], -c[_C_RV + 2]
-        ux, uy, uz = speed + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
-        qx_, qy_, qz_ = st[_S_WDOT], st[_S_WDOT + 1], st[_S_WDOT + 2]
-        comp_x = st[_S_DVDT] + (qy_ * dz - qz_ * dy) + (wy * uz - wz * uy)
-        comp_y = (qz_ * dx - qx_ * dz) + (wz * ux - wx * uz)
-        comp_z = (qx_ * dy - qy_ * dx) + (wx * uy - wy * ux)
-        flags |= fl.ACCEL_COMPENSATED
-    st[_S_VOK] = 1.0 if v_ok else 0.0
-
-    # ---- rest detection (steady gyro and accelerometer; with speed: standing still)
-    ar = c[_C_A_REST]
-    wl0 = st[_S_WLP] + ar * (gx - st[_S_WLP])
-    wl1 = st[_S_WLP + 1] + ar * (gy - st[_S_WLP + 1])
-    wl2 = st[_S_WLP + 2] + ar * (gz - st[_S_WLP + 2])
-    st[_S_WLP], st[_S_WLP + 1], st[_S_WLP + 2] = wl0, wl1, wl2
-    rest = False
-    if acc_ok:
-        al0 = st[_S_ALP] + ar * (ax - st[_S_ALP])
-        al1 = st[_S_ALP + 1] + ar * (ay - st[_S_ALP + 1])
-        al2 = st[_S_ALP + 2] + ar * (az - st[_S_ALP + 2])
-        st[_S_ALP], st[_S_ALP + 1], st[_S_ALP + 2] = al0, al1, al2
-        dw2 = (gx - wl0) ** 2 + (gy - wl1) ** 2 + (gz - wl2) ** 2
-        da2 = (ax - al0) ** 2 + (ay - al1) ** 2 + (az - al2) ** 2
-        thw = c[_C_REST_W]
-        still = dw2 < thw * thw and da2 < c[_C_REST_A] * c[_C_REST_A]
-        if still:
-            # not turning either: the bias-corrected rate within the threshold plus 3σ of the bias
-            thr = thw + 3.0 * math.sqrt(max(st[_S_BP], st[_S_BP + 4], st[_S_BP + 8]))
-            rw2 = (wl0 - bx) ** 2 + (wl1 - by) ** 2 + (wl2 - bz) ** 2
-            still = rw2 < thr * thr
-        if v_ok:
-            still = still and abs(speed) < c[_C_REST_V]
-        st[_S_REST_T] = st[_S_REST_T] + h if still else 0.0
-        rest = st[_S_REST_T] >= c[_C_REST_N]
-    if rest:
-        flags |= fl.REST
-
-    # ---- tilt error: low-pass of the (compensated) specific force in I, gated
-    ex = ey = ez = 0.0  # rotation-vector error of the estimate, world frame
-    if acc_ok:
-        fx, fy, fz = ax - comp_x, ay - comp_y, az - comp_z
-        fnorm = math.sqrt(fx * fx + fy * fy + fz * fz)
-        d = abs(fnorm - c[_C_G]) * c[_C_INV_GATE_G]
-        weight = 1.0 / (1.0 + d * d)
-        if weight < 0.5:
-            flags |= fl.ACCEL_GATED
-        alpha = c[_C_A_ACCV] if v_ok else c[_C_A_ACC]
-        if h > alpha * (t + h):  # start: a running mean (as VQF), α = max(α, h/(t + h))
-            alpha = h / (t + h)
-        alpha *= weight
-        fix, fiy, fiz = _qrot(qiw, qix, qiy, qiz, fx, fy, fz)
-        fl0 = st[_S_FLP] + alpha * (fix - st[_S_FLP])
-        fl1 = st[_S_FLP + 1] + alpha * (fiy - st[_S_FLP + 1])
-        fl2 = st[_S_FLP + 2] + alpha * (fiz - st[_S_FLP + 2])
-        st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2] = fl0, fl1, fl2
-        nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, fl0, fl1, fl2)
-        ang = _angle_over_sine(nx * nx + ny * ny, nz)
-        ex, ey = ny * ang, -nx * ang  # rotate about n × up by the angle between n and up
-
-    # ---- heading error from the magnetometer (offset removed), disturbance detection
-    if mag_ok:
-        # the offset is learned once the gyro bias is known (an unknown bias turns the I frame
-        # and would pass for an offset); its own innovation gate rejects magnets, so the
-        # norm/dip test below (which a wrong offset upsets) does not gate it
-        if c[_C_OFFSET] != 0.0 and max(st[_S_BP], st[_S_BP + 4], st[_S_BP + 8]) < c[_C_OFF_BIAS2]:
-            st[_S_OFF_K] += 1.0
-            if st[_S_OFF_K] >= c[_C_OFF_N]:
-                st[_S_OFF_K] = 0.0
-                _offset_update(c, st, mx, my, mz)
-        cx, cy, cz = mx - st[_S_OFF], my - st[_S_OFF + 1], mz - st[_S_OFF + 2]
-        mwx, mwy, mwz = _qrot(lw, lx, ly, lz, cx, cy, cz)
-        mh = math.sqrt(mwx * mwx + mwy * mwy)
-        norm = math.sqrt(mh * mh + mwz * mwz)
-        if st[_S_FIELD_OK] == 0.0:
-            st[_S_BNORM] = norm if c[_C_BNORM] < 0.0 else c[_C_BNORM]
-            if math.isnan(c[_C_DIP]):
-                st[_S_DIP] = math.atan2(-mwz, mh)
-                st[_S_DIP_CS], st[_S_DIP_CS + 1] = (mh / norm, -mwz / norm) if norm > 0.0 else (1.0, 0.0)
-            else:
-                st[_S_DIP], st[_S_DIP_CS], st[_S_DIP_CS + 1] = c[_C_DIP], c[_C_DIP_C], c[_C_DIP_S]
-            st[_S_FIELD_OK] = 1.0
-        # the dip δ_m = atan2(−m_U, m_H) against the expected δ: norm·(cos, sin)(δ_m − δ) from
-        # (cos δ, sin δ) in the state, without an arctangent of the large dip angle
-        c0, s0 = st[_S_DIP_CS], st[_S_DIP_CS + 1]
-        dcos = mh * c0 - mwz * s0
-        dsin = -mwz * c0 - mh * s0
-        if abs(norm - st[_S_BNORM]) > c[_C_BTOL] * st[_S_BNORM] or dcos < c[_C_COS_DTOL] * norm:
-            flags |= fl.MAG_DISTURBED
-            st[_S_REJ_T] += h
-            if st[_S_REJ_T] > c[_C_REJ_N]:  # disturbed for too long: take this as the new field
-                st[_S_FIELD_OK] = 0.0
-                st[_S_REJ_T] = 0.0
-        else:
-            st[_S_REJ_T] = 0.0
-            af = c[_C_A_FIELD]
-            if c[_C_BNORM] < 0.0:
-                st[_S_BNORM] += af * (norm - st[_S_BNORM])
-            if math.isnan(c[_C_DIP]):  # δ += α(δ_m − δ), and (cos δ, sin δ) turned with it
-                e = af * _atan2(dsin, dcos)
-                st[_S_DIP] += e
-                ce, se = 1.0 - 0.5 * e * e, e * (1.0 - e * e * (1.0 / 6.0))
-                st[_S_DIP_CS], st[_S_DIP_CS + 1] = c0 * ce - s0 * se, s0 * ce + c0 * se
-            if mh > 0.0:
-                # the field's azimuth (clockwise from north) minus D, from the horizontal field
-                # turned by −D; turning the estimate about Up by it brings the field to D
-                cd = c[_C_CDH] * c[_C_CDH] - c[_C_SDH] * c[_C_SDH]
-                sd = 2.0 * c[_C_SDH] * c[_C_CDH]
-                ez = _atan2(mwx * cd - mwy * sd, mwy * cd + mwx * sd)
-
-    # ---- the correction ω_c = K ε + k_p n × ε as a rotation of q_c (world frame)
-    kt = c[_C_KT]
-    kh = c[_C_KH]
-    if kh * (t + c[_C_T0]) < 1.0:  # start: heading follows the settling tilt, k_h = max(k_h, 1/(t + t0))
-        kh = 1.0 / (t + c[_C_T0])
-    kp = c[_C_KP]
-    ux = kt * ex + kp * (ez - ey)
-    uy = kt * ey + kp * (ex - ez)
-    uz = kh * ez + kp * (ey - ex)
-    if ux != 0.0 or uy != 0.0 or uz != 0.0:
-        dq = _qexp_fast(ux * h, uy * h, uz * h)
-        qcw, qcx, qcy, qcz = _unit(qcw, qcx, qcy, qcz)  # (as for q_I: off the chain)
-        qcw, qcx, qcy, qcz = _qmul(dq[0], dq[1], dq[2], dq[3], qcw, qcx, qcy, qcz)
-        st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3] = qcw, qcx, qcy, qcz
-        lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
-
-    # ---- gyro bias: Kalman filter (VQF): the correction rate seen through the tilt low-pass
-    bp0, bv = c[_C_BP0], c[_C_BV]
-    if st[_S_BP] < bp0:
-        st[_S_BP] += bv
-    if st[_S_BP + 4] < bp0:
-        st[_S_BP + 4] += bv
-    if st[_S_BP + 8] < bp0:
-        st[_S_BP + 8] += bv
-    r0, r1, r2, r3, r4, r5, r6, r7, r8 = _mat_from_q(lw, lx, ly, lz)  # body → world
-    alpha = c[_C_A_ACCV] if v_ok else c[_C_A_ACC]
-    j = _S_RLP
-    h0 = st[j] + alpha * (r0 - st[j])
-    h1 = st[j + 1] + alpha * (r1 - st[j + 1])
-    h2 = st[j + 2] + alpha * (r2 - st[j + 2])
-    h3 = st[j + 3] + alpha * (r3 - st[j + 3])
-    h4 = st[j + 4] + alpha * (r4 - st[j + 4])
-    h5 = st[j + 5] + alpha * (r5 - st[j + 5])
-    h6 = st[j + 6] + alpha * (r6 - st[j + 6])
-    h7 = st[j + 7] + alpha * (r7 - st[j + 7])
-    h8 = st[j + 8] + alpha * (r8 - st[j + 8])
-    st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4] = h0, h1, h2, h3, h4
-    st[j + 5], st[j + 6], st[j + 7], st[j + 8] = h5, h6, h7, h8
-    j = _S_RBLP
-    rb0 = st[j] + alpha * ((r0 * bx + r1 * by + r2 * bz) - st[j])
-    rb1 = st[j + 1] + alpha * ((r3 * bx + r4 * by + r5 * bz) - st[j + 1])
-    rb2 = st[j + 2] + alpha * ((r6 * bx + r7 * by + r8 * bz) - st[j + 2])
-    st[j], st[j + 1], st[j + 2] = rb0, rb1, rb2
-    if rest:
-        _bias_update(c, st, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
-                     wl0 - bx, wl1 - by, wl2 - bz, c[_C_BWR], c[_C_BWR], c[_C_BWR])
-    elif acc_ok and t > c[_C_T0]:  # not during the start, while the low-pass settles
-        e0 = rb0 - (h0 * bx + h1 * by + h2 * bz) - ux
-        e1 = rb1 - (h3 * bx + h4 * by + h5 * bz) - uy
-        e2 = rb2 - (h6 * bx + h7 * by + h8 * bz) - uz
-        wv = c[_C_BWV] if ez != 0.0 else c[_C_BWV] * 1e6
-        _bias_update(c, st, (h0, h1, h2, h3, h4, h5, h6, h7, h8), e0, e1, e2, c[_C_BWM], c[_C_BWM], wv)
-
-    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = _unit(lw, lx, ly, lz)
-    return flags
-
-
 @jit(error_model="numpy")
 def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out, bias_out):
-    """``_biso_plus_step`` over every row; ``speed`` and ``imu_flags`` are empty when not given."""
-    given = speed.shape[0] == gyro.shape[0] and speed.shape[0] > 0
-    has_flags = imu_flags.shape[0] == gyro.shape[0]
-    for i in range(gyro.shape[0]):
+    """Advance the state over every row (the batch and the streaming paths are this loop);
+    ``speed`` and ``imu_flags`` are empty when not given. Never raises.
+
+    Until the first attitude is set, samples go through ``_biso_plus_start`` on the state
+    array; then the state is held in local variables (registers: no stores and reloads of
+    the state array between the steps of a sample, no reference counting of arrays passed to
+    inlined helpers) and written back at the end. The offset filter (every ``offset_n``-th
+    magnetometer sample) keeps its part of the state in the array."""
+    n = gyro.shape[0]
+    given = speed.shape[0] == n and n > 0
+    has_flags = imu_flags.shape[0] == n
+    grange, arange = c[_C_GRANGE], c[_C_ARANGE]
+
+    # ---- until initialised: the attitude (unless q0 was given) and every filter start from the
+    # first usable sample
+    i0 = 0
+    while i0 < n and st[_S_INIT] != 1.0:
+        v = speed[i0] if given else np.nan
+        sf = imu_flags[i0] if has_flags else 0
+        ax, ay, az = accel[i0, 0], accel[i0, 1], accel[i0, 2]
+        mx, my, mz = mag[i0, 0], mag[i0, 1], mag[i0, 2]
+        flags, gx, gy, gz, acc_ok, f2, mag_ok, _, _, _, _ = _input_checks(
+            gyro[i0, 0], gyro[i0, 1], gyro[i0, 2], ax, ay, az, mx, my, mz,
+            st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2], sf, grange, arange)
+        st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = gx, gy, gz
+        if st[_S_INIT] == 0.0 and not acc_ok:
+            flags |= fl.UNINITIALIZED
+        else:
+            _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, math.sqrt(f2), mx, my, mz, acc_ok, mag_ok, v, given)
+        flags_out[i0] = flags
+        for k in range(4):
+            q_out[i0, k] = st[_S_LAM + k]
+        for k in range(3):
+            bias_out[i0, k] = st[_S_BIAS + k]
+        i0 += 1
+    if i0 >= n:
+        return
+
+    # ---- coefficients
+    h, fs = c[_C_H], c[_C_FS]
+    a_acc, a_accv, a_v, ar, af = c[_C_A_ACC], c[_C_A_ACCV], c[_C_A_SPEED], c[_C_A_REST], c[_C_A_FIELD]
+    dx, dy, dz = -c[_C_RV], -c[_C_RV + 1], -c[_C_RV + 2]  # d = −r_v
+    thw = c[_C_REST_W]
+    thw2, tha2 = thw * thw, c[_C_REST_A] * c[_C_REST_A]
+    rest_n, rest_v = c[_C_REST_N], c[_C_REST_V]
+    g, inv_gate_g = c[_C_G], c[_C_INV_GATE_G]
+    offset_on, off_bias2, off_n = c[_C_OFFSET] != 0.0, c[_C_OFF_BIAS2], c[_C_OFF_N]
+    c_bnorm, c_dip, c_dipc, c_dips = c[_C_BNORM], c[_C_DIP], c[_C_DIP_C], c[_C_DIP_S]
+    learn_norm, learn_dip = c_bnorm < 0.0, math.isnan(c_dip)
+    btol, cos_dtol, rej_n = c[_C_BTOL], c[_C_COS_DTOL], c[_C_REJ_N]
+    # (cos D, sin D): the horizontal field turned by −D
+    cd = c[_C_CDH] * c[_C_CDH] - c[_C_SDH] * c[_C_SDH]
+    sd = 2.0 * c[_C_SDH] * c[_C_CDH]
+    kt, kh0, kp, t0 = c[_C_KT], c[_C_KH], c[_C_KP], c[_C_T0]
+    bp0, bv, bwm, bwv, bwr, blim = c[_C_BP0], c[_C_BV], c[_C_BWM], c[_C_BWV], c[_C_BWR], c[_C_BLIM]
+
+    # ---- state into locals
+    lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
+    qiw, qix, qiy, qiz = st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3]
+    qcw, qcx, qcy, qcz = st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3]
+    bx, by, bz = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
+    j = _S_BP
+    p00, p01, p02, p10, p11, p12, p20, p21, p22 = (st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5],
+                                                   st[j + 6], st[j + 7], st[j + 8])
+    flp0, flp1, flp2 = st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2]
+    j = _S_RLP
+    rlp0, rlp1, rlp2, rlp3, rlp4, rlp5, rlp6, rlp7, rlp8 = (st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4],
+                                                            st[j + 5], st[j + 6], st[j + 7], st[j + 8])
+    rblp0, rblp1, rblp2 = st[_S_RBLP], st[_S_RBLP + 1], st[_S_RBLP + 2]
+    hgx, hgy, hgz = st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2]
+    wl0, wl1, wl2 = st[_S_WLP], st[_S_WLP + 1], st[_S_WLP + 2]
+    al0, al1, al2 = st[_S_ALP], st[_S_ALP + 1], st[_S_ALP + 2]
+    rest_t, vprev, dvdt, vok_prev = st[_S_REST_T], st[_S_VPREV], st[_S_DVDT], st[_S_VOK]
+    wpx, wpy, wpz = st[_S_WPREV], st[_S_WPREV + 1], st[_S_WPREV + 2]
+    wdx, wdy, wdz = st[_S_WDOT], st[_S_WDOT + 1], st[_S_WDOT + 2]
+    ox, oy, oz = st[_S_OFF], st[_S_OFF + 1], st[_S_OFF + 2]
+    off_k, bnorm, dip, field_ok, rej_t = st[_S_OFF_K], st[_S_BNORM], st[_S_DIP], st[_S_FIELD_OK], st[_S_REJ_T]
+    dipc, dips = st[_S_DIP_CS], st[_S_DIP_CS + 1]
+    t = st[_S_TIME]
+
+    # from 0, the samples of the start skipped: an index known to be non-negative needs no
+    # wraparound of negative indices at each array access
+    for i in range(n):
+        if i < i0:
+            continue
         v = speed[i] if given else np.nan
         sf = imu_flags[i] if has_flags else 0
-        flags_out[i] = _biso_plus_step(c, st, gyro[i, 0], gyro[i, 1], gyro[i, 2], accel[i, 0], accel[i, 1],
-                                       accel[i, 2], mag[i, 0], mag[i, 1], mag[i, 2], v, given, sf)
-        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
-        bias_out[i, 0], bias_out[i, 1], bias_out[i, 2] = st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2]
+        ax, ay, az = accel[i, 0], accel[i, 1], accel[i, 2]
+        mx, my, mz = mag[i, 0], mag[i, 1], mag[i, 2]
+        flags, gx, gy, gz, acc_ok, f2, mag_ok, _, _, _, _ = _input_checks(
+            gyro[i, 0], gyro[i, 1], gyro[i, 2], ax, ay, az, mx, my, mz, hgx, hgy, hgz, sf, grange, arange)
+        hgx, hgy, hgz = gx, gy, gz
+        t += h
+
+        # ---- gyro: bias-corrected strapdown of q_I over the interval (held rate)
+        wx, wy, wz = gx - bx, gy - by, gz - bz
+        eb0, eb1, eb2, eb3 = _qexp_fast(wx * h, wy * h, wz * h)
+        # |q ∘ e| = |q| for a unit e: the normalisation factor comes from q before the product,
+        # in parallel with e^{bh}, not after it on the chain of dependent operations
+        qiw, qix, qiy, qiz = _unit(qiw, qix, qiy, qiz)
+        qiw, qix, qiy, qiz = _qmul(qiw, qix, qiy, qiz, eb0, eb1, eb2, eb3)
+        lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
+
+        # ---- speed: acceleration of the IMU from the speed v of the point r_v of the vehicle
+        wdx += a_v * ((wx - wpx) * fs - wdx)
+        wdy += a_v * ((wy - wpy) * fs - wdy)
+        wdz += a_v * ((wz - wpz) * fs - wdz)
+        wpx, wpy, wpz = wx, wy, wz
+        v_ok = given and math.isfinite(v)
+        comp_x = comp_y = comp_z = 0.0
+        if v_ok:
+            if vok_prev != 0.0:
+                dvdt += a_v * ((v - vprev) * fs - dvdt)
+            vprev = v
+            # IMU velocity u = (v, 0, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
+            ux, uy, uz = v + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
+            comp_x = dvdt + (wdy * dz - wdz * dy) + (wy * uz - wz * uy)
+            comp_y = (wdz * dx - wdx * dz) + (wz * ux - wx * uz)
+            comp_z = (wdx * dy - wdy * dx) + (wx * uy - wy * ux)
+            flags |= fl.ACCEL_COMPENSATED
+        vok_prev = 1.0 if v_ok else 0.0
+
+        # ---- rest detection (steady gyro and accelerometer; with speed: standing still)
+        wl0 = wl0 + ar * (gx - wl0)
+        wl1 = wl1 + ar * (gy - wl1)
+        wl2 = wl2 + ar * (gz - wl2)
+        rest = False
+        if acc_ok:
+            al0 = al0 + ar * (ax - al0)
+            al1 = al1 + ar * (ay - al1)
+            al2 = al2 + ar * (az - al2)
+            dw2 = (gx - wl0) ** 2 + (gy - wl1) ** 2 + (gz - wl2) ** 2
+            da2 = (ax - al0) ** 2 + (ay - al1) ** 2 + (az - al2) ** 2
+            still = dw2 < thw2 and da2 < tha2
+            if still:
+                # not turning either: the bias-corrected rate within the threshold plus 3σ of the bias
+                thr = thw + 3.0 * math.sqrt(max(p00, p11, p22))
+                rw2 = (wl0 - bx) ** 2 + (wl1 - by) ** 2 + (wl2 - bz) ** 2
+                still = rw2 < thr * thr
+            if v_ok:
+                still = still and abs(v) < rest_v
+            rest_t = rest_t + h if still else 0.0
+            rest = rest_t >= rest_n
+        if rest:
+            flags |= fl.REST
+
+        # ---- tilt error: low-pass of the (compensated) specific force in I, gated
+        ex = ey = ez = 0.0  # rotation-vector error of the estimate, world frame
+        if acc_ok:
+            if v_ok:
+                fx, fy, fz = ax - comp_x, ay - comp_y, az - comp_z
+                fnorm = math.sqrt(fx * fx + fy * fy + fz * fz)
+            else:  # (f − 0 = f, and |f|² is the input check's)
+                fx, fy, fz, fnorm = ax, ay, az, math.sqrt(f2)
+            d = abs(fnorm - g) * inv_gate_g
+            weight = 1.0 / (1.0 + d * d)
+            if weight < 0.5:
+                flags |= fl.ACCEL_GATED
+            alpha = a_accv if v_ok else a_acc
+            if h > alpha * (t + h):  # start: a running mean (as VQF), α = max(α, h/(t + h))
+                alpha = h / (t + h)
+            alpha *= weight
+            fix, fiy, fiz = _qrot(qiw, qix, qiy, qiz, fx, fy, fz)
+            flp0 = flp0 + alpha * (fix - flp0)
+            flp1 = flp1 + alpha * (fiy - flp1)
+            flp2 = flp2 + alpha * (fiz - flp2)
+            nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, flp0, flp1, flp2)
+            ang = _angle_over_sine(nx * nx + ny * ny, nz)
+            ex, ey = ny * ang, -nx * ang  # rotate about n × up by the angle between n and up
+
+        # ---- heading error from the magnetometer (offset removed), disturbance detection
+        if mag_ok:
+            # the offset is learned once the gyro bias is known (an unknown bias turns the I frame
+            # and would pass for an offset); its own innovation gate rejects magnets, so the
+            # norm/dip test below (which a wrong offset upsets) does not gate it
+            if offset_on and max(p00, p11, p22) < off_bias2:
+                off_k += 1.0
+                if off_k >= off_n:
+                    off_k = 0.0
+                    st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
+                    _offset_update(c, st, mx, my, mz)
+                    ox, oy, oz = st[_S_OFF], st[_S_OFF + 1], st[_S_OFF + 2]
+            mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz)
+            mh = math.sqrt(mwx * mwx + mwy * mwy)
+            norm = math.sqrt(mh * mh + mwz * mwz)
+            if field_ok == 0.0:
+                bnorm = norm if learn_norm else c_bnorm
+                if learn_dip:
+                    dip = math.atan2(-mwz, mh)
+                    dipc, dips = (mh / norm, -mwz / norm) if norm > 0.0 else (1.0, 0.0)
+                else:
+                    dip, dipc, dips = c_dip, c_dipc, c_dips
+                field_ok = 1.0
+            # the dip δ_m = atan2(−m_U, m_H) against the expected δ: norm·(cos, sin)(δ_m − δ) from
+            # (cos δ, sin δ) in the state, without an arctangent of the large dip angle
+            c0, s0 = dipc, dips
+            dcos = mh * c0 - mwz * s0
+            dsin = -mwz * c0 - mh * s0
+            if abs(norm - bnorm) > btol * bnorm or dcos < cos_dtol * norm:
+                flags |= fl.MAG_DISTURBED
+                rej_t += h
+                if rej_t > rej_n:  # disturbed for too long: take this as the new field
+                    field_ok = 0.0
+                    rej_t = 0.0
+            else:
+                rej_t = 0.0
+                if learn_norm:
+                    bnorm += af * (norm - bnorm)
+                if learn_dip:  # δ += α(δ_m − δ), and (cos δ, sin δ) turned with it
+                    e = af * _atan2(dsin, dcos)
+                    dip += e
+                    ce, se = 1.0 - 0.5 * e * e, e * (1.0 - e * e * (1.0 / 6.0))
+                    dipc, dips = c0 * ce - s0 * se, s0 * ce + c0 * se
+                if mh > 0.0:
+                    # the field's azimuth (clockwise from north) minus D, from the horizontal field
+                    # turned by −D; turning the estimate about Up by it brings the field to D
+                    ez = _atan2(mwx * cd - mwy * sd, mwy * cd + mwx * sd)
+
+        # ---- the correction ω_c = K ε + k_p n × ε as a rotation of q_c (world frame)
+        kh = kh0
+        if kh * (t + t0) < 1.0:  # start: heading follows the settling tilt, k_h = max(k_h, 1/(t + t0))
+            kh = 1.0 / (t + t0)
+        if kp == 0.0:  # the default: the cross-link terms are ±0 and change no sum
+            ux, uy, uz = kt * ex, kt * ey, kh * ez
+        else:
+            ux = kt * ex + kp * (ez - ey)
+            uy = kt * ey + kp * (ex - ez)
+            uz = kh * ez + kp * (ey - ex)
+        if ux != 0.0 or uy != 0.0 or uz != 0.0:
+            dq0, dq1, dq2, dq3 = _qexp_fast(ux * h, uy * h, uz * h)
+            qcw, qcx, qcy, qcz = _unit(qcw, qcx, qcy, qcz)  # (as for q_I: off the chain)
+            qcw, qcx, qcy, qcz = _qmul(dq0, dq1, dq2, dq3, qcw, qcx, qcy, qcz)
+            lw, lx, ly, lz = _qmul(qcw, qcx, qcy, qcz, qiw, qix, qiy, qiz)
+
+        # ---- gyro bias: Kalman filter (VQF): the correction rate seen through the tilt low-pass
+        if p00 < bp0:
+            p00 += bv
+        if p11 < bp0:
+            p11 += bv
+        if p22 < bp0:
+            p22 += bv
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = _mat_from_q(lw, lx, ly, lz)  # body → world
+        alpha = a_accv if v_ok else a_acc
+        rlp0 = rlp0 + alpha * (r0 - rlp0)
+        rlp1 = rlp1 + alpha * (r1 - rlp1)
+        rlp2 = rlp2 + alpha * (r2 - rlp2)
+        rlp3 = rlp3 + alpha * (r3 - rlp3)
+        rlp4 = rlp4 + alpha * (r4 - rlp4)
+        rlp5 = rlp5 + alpha * (r5 - rlp5)
+        rlp6 = rlp6 + alpha * (r6 - rlp6)
+        rlp7 = rlp7 + alpha * (r7 - rlp7)
+        rlp8 = rlp8 + alpha * (r8 - rlp8)
+        rblp0 = rblp0 + alpha * ((r0 * bx + r1 * by + r2 * bz) - rblp0)
+        rblp1 = rblp1 + alpha * ((r3 * bx + r4 * by + r5 * bz) - rblp1)
+        rblp2 = rblp2 + alpha * ((r6 * bx + r7 * by + r8 * bz) - rblp2)
+        updated = False
+        if rest:
+            updated, bx, by, bz, p00, p01, p02, p11, p12, p22 = _bias_update(
+                bx, by, bz, p00, p01, p02, p11, p12, p22, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+                wl0 - bx, wl1 - by, wl2 - bz, bwr, bwr, bwr, blim)
+        elif acc_ok and t > t0:  # not during the start, while the low-pass settles
+            e0 = rblp0 - (rlp0 * bx + rlp1 * by + rlp2 * bz) - ux
+            e1 = rblp1 - (rlp3 * bx + rlp4 * by + rlp5 * bz) - uy
+            e2 = rblp2 - (rlp6 * bx + rlp7 * by + rlp8 * bz) - uz
+            wv = bwv if ez != 0.0 else bwv * 1e6
+            updated, bx, by, bz, p00, p01, p02, p11, p12, p22 = _bias_update(
+                bx, by, bz, p00, p01, p02, p11, p12, p22, (rlp0, rlp1, rlp2, rlp3, rlp4, rlp5, rlp6, rlp7, rlp8),
+                e0, e1, e2, bwm, bwm, wv, blim)
+        if updated:
+            p10, p20, p21 = p01, p02, p12
+
+        lw, lx, ly, lz = _unit(lw, lx, ly, lz)
+        flags_out[i] = flags
+        q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = lw, lx, ly, lz
+        bias_out[i, 0], bias_out[i, 1], bias_out[i, 2] = bx, by, bz
+
+    # ---- locals back into the state
+    st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3] = lw, lx, ly, lz
+    st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
+    st[_S_QC], st[_S_QC + 1], st[_S_QC + 2], st[_S_QC + 3] = qcw, qcx, qcy, qcz
+    st[_S_BIAS], st[_S_BIAS + 1], st[_S_BIAS + 2] = bx, by, bz
+    j = _S_BP
+    st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4] = p00, p01, p02, p10, p11
+    st[j + 5], st[j + 6], st[j + 7], st[j + 8] = p12, p20, p21, p22
+    st[_S_FLP], st[_S_FLP + 1], st[_S_FLP + 2] = flp0, flp1, flp2
+    j = _S_RLP
+    st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4] = rlp0, rlp1, rlp2, rlp3, rlp4
+    st[j + 5], st[j + 6], st[j + 7], st[j + 8] = rlp5, rlp6, rlp7, rlp8
+    st[_S_RBLP], st[_S_RBLP + 1], st[_S_RBLP + 2] = rblp0, rblp1, rblp2
+    st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = hgx, hgy, hgz
+    st[_S_WLP], st[_S_WLP + 1], st[_S_WLP + 2] = wl0, wl1, wl2
+    st[_S_ALP], st[_S_ALP + 1], st[_S_ALP + 2] = al0, al1, al2
+    st[_S_REST_T], st[_S_VPREV], st[_S_DVDT], st[_S_VOK] = rest_t, vprev, dvdt, vok_prev
+    st[_S_WPREV], st[_S_WPREV + 1], st[_S_WPREV + 2] = wpx, wpy, wpz
+    st[_S_WDOT], st[_S_WDOT + 1], st[_S_WDOT + 2] = wdx, wdy, wdz
+    st[_S_OFF_K], st[_S_BNORM], st[_S_DIP], st[_S_FIELD_OK], st[_S_REJ_T] = off_k, bnorm, dip, field_ok, rej_t
+    st[_S_DIP_CS], st[_S_DIP_CS + 1] = dipc, dips
+    st[_S_TIME] = t
 
 
 class BisoPlusEstimator(Estimator):
