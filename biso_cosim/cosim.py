@@ -23,13 +23,14 @@ from typing import Any, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from biso_cosim.estimators import Estimate, make_estimator
+from biso_cosim._period import _sense_period, _sensor_inputs
+from biso_cosim.estimators import Estimate, Estimator, make_estimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
 from biso_cosim.vehicle.driver import DriverCommand
-from biso_cosim.vehicle.sim import Truth, VehicleSim
+from biso_cosim.vehicle.sim import _NO_ROWS, Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
            "NAVIGATOR_PRESETS"]
@@ -471,35 +472,76 @@ class CoSimulation:
         With ``command`` the car is driven by it for this period instead of by the scripted
         driver (for agents that drive); the driver still tracks progress along the route.
         """
-        return self._sense(self._drive(command))
+        if self.magnetic.disturbances:
+            return self._sense(self._drive(command))
+        return self._sense_period(*self._drive_rows(command))
 
     def _drive(self, command: DriverCommand | None = None) -> Truth:
         """Driver (or the given command) and physics for one control period."""
+        return self.vehicle._truth(*self._drive_rows(command))
+
+    def _drive_rows(self, command: DriverCommand | None = None) -> tuple[np.ndarray, int]:
+        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``)."""
         vehicle = self.vehicle
         if command is None:
-            vehicle.drive()
+            vehicle._drive()  # the scripted driver (drive() without its command record)
         else:
             _check_command(command, vehicle.parameters["max_steer_rad"])
             vehicle.observe_route()
             vehicle.apply(command)
-        truth = vehicle.step()
+        rows = vehicle._step_rows()
         if self.keep_log:
             self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
             self._log["progress_m"].append(vehicle.driver.state.s_m)
         self._chunks_done += 1
         if self._finished_chunk is None and vehicle.driver.finished:
             self._finished_chunk = self._chunks_done
-        return truth
+        return rows
+
+    def _sense_period(self, rows: np.ndarray, first_step: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``_sense`` of one period's MuJoCo sensor rows, with the truth packing, the sensor's
+        inputs, the sensor and the truth at its samples in one kernel call (``_period``): the
+        same numbers as ``_sense(vehicle._truth(rows, first_step))``, tested; the Earth's field
+        alone (no local disturbances)."""
+        vehicle, imu = self.vehicle, self.imu
+        orders, subs = self._increment_orders, self._subintervals
+        packed = np.empty((rows.shape[0], Truth.WIDTH))
+        out = imu._outputs(rows.shape[0], orders, subs)
+        at = np.empty((out[3].shape[0], Truth.WIDTH))
+        before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
+        cp, ch, cs, chs, temp_default = imu._kernel_state()
+        status, k = _sense_period(rows, vehicle._gather, first_step, vehicle.physics_rate_hz,
+                                  self.magnetic.earth.field_enu_ut, before, cp, ch, cs, chs, temp_default, orders, subs,
+                                  self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at)
+        truth = Truth(packed)
+        if status >= 0 or status == -3:  # inputs refused, nothing changed: the errors of the general path
+            return self._sense(truth)
+        samples = imu._samples(status, k, out, orders, subs)
+        if status == -4:
+            self._truth_at(samples.t_s, truth)  # raises: the sensor and the physics are out of step
+        self._last_truth_row = Truth(packed[-1:])
+        self._remove_gyro_offset(samples)
+        return self._estimate(truth, samples, Truth(at[:k]))
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
-        mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
-        samples = self.imu.simulate(truth.omega_b, truth.specific_force_b, mag_b,
-                                    increments=self._increment_orders, subintervals=self._subintervals)
+        if self.magnetic.disturbances:
+            omega_b, force_b = truth.omega_b, truth.specific_force_b
+            mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
+        else:  # the Earth's field alone: the sensor's three inputs by one kernel call
+            omega_b, force_b, mag_b = np.empty((3, len(truth), 3))
+            if not _sensor_inputs(truth.packed, self.magnetic.earth.field_enu_ut, omega_b, force_b, mag_b):
+                self.magnetic.field_b(truth.q_wb, truth.pos_w)  # raises, naming the positions
+        samples = self.imu.simulate(omega_b, force_b, mag_b, increments=self._increment_orders,
+                                    subintervals=self._subintervals)
         if self._imu_t0_s:
             samples.t_s -= self._imu_t0_s  # the sensor's clock started before the calibration
         self._remove_gyro_offset(samples)
-        at_samples = self._truth_at(samples.t_s, truth)
+        return self._estimate(truth, samples, self._truth_at(samples.t_s, truth))
+
+    def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth
+                  ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """GNSS, navigators and estimators over the sensor's samples (and the log)."""
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
@@ -508,6 +550,7 @@ class CoSimulation:
             if self.keep_log:
                 self._nav_log[label].append(navigated)
         outputs = {}
+        imu_flags = None
         for key, est in self.estimators.items():
             inputs = getattr(est, "inputs", ())
             extra = {}
@@ -516,11 +559,17 @@ class CoSimulation:
             if "gnss" in inputs:
                 extra["gnss"] = fixes
             if "imu_flags" in inputs:  # the sensor's saturation and overflow bits
-                extra["imu_flags"] = samples.flags
+                if imu_flags is None:
+                    imu_flags = samples.flags.astype(np.int64)
+                extra["imu_flags"] = imu_flags
             if key in self._dtheta_forms:  # increments for a coning-algorithm gyro step
                 form, m = self._dtheta_forms[key]
-                extra["dtheta_b"] = samples.dtheta[:, :m] if form == "multiple" else samples.dtheta_sub
-            outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
+                extra["dtheta_b"] = np.ascontiguousarray(samples.dtheta[:, :m] if form == "multiple"
+                                                         else samples.dtheta_sub)
+            if isinstance(est, Estimator):  # the samples of our own sensor: checked once (see there)
+                outputs[key] = est._update_prechecked(samples.gyro_b, samples.accel_b, samples.mag_b, extra)
+            else:
+                outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
         if self.keep_log:
             self._log["truth"].append(at_samples)
             self._log["imu"].append(samples)

@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from biso_cosim.cosim import CoSimulation, EstimatorSpec
-from biso_cosim.envs._kernels import _push_window
+from biso_cosim.envs._kernels import _inside, _push_window
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import ImuSamples, Profile
@@ -470,7 +470,7 @@ class CosimEnv(gym.Env):
         if a.shape != space.shape:
             raise ValueError(f"action must have shape {space.shape} ({', '.join(self.ACTION_NAMES)}), got {a.shape}")
         low, high = space.low, space.high
-        if ((a >= low) & (a <= high)).all():  # the common case in one test (NaN compares false)
+        if _inside(a, low, high):  # the common case in one call (NaN compares false)
             return a
         bad = ~np.isfinite(a)
         if bad.any():

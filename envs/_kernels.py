@@ -10,7 +10,7 @@ import numpy as np
 from biso_cosim._numba import jit
 from biso_cosim.frames import _qmul, _qnormalize
 
-__all__ = ["_push_window", "_angle", "_mean_angle", "_dead_reckon", "_route_ahead"]
+__all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_dead_reckon", "_route_ahead"]
 
 
 @jit
@@ -41,6 +41,15 @@ def _push_window(values, gyro, accel, mag, fresh):
 
 
 @jit
+def _inside(a, low, high):
+    """Whether low[i] <= a[i] <= high[i] for every i (False for NaN)."""
+    for i in range(a.shape[0]):
+        if not (low[i] <= a[i] <= high[i]):
+            return False
+    return True
+
+
+@jit
 def _angle(p, q):
     """Rotation angle (rad, [0, π]) between the attitudes of quaternions p and q of any
     non-zero length (the expression of ``frames.quat_angle_between``, bit for bit)."""
@@ -48,6 +57,12 @@ def _angle(p, q):
     qw, qx, qy, qz = _qnormalize(q[0], q[1], q[2], q[3])
     d = _qmul(pw, -px, -py, -pz, qw, qx, qy, qz)
     return 2.0 * math.atan2(math.sqrt(d[1] * d[1] + d[2] * d[2] + d[3] * d[3]), abs(d[0]))
+
+
+@jit
+def _angles_to(p1, p2, q):
+    """(_angle(p1, q), _angle(p2, q)) in one call."""
+    return _angle(p1, q), _angle(p2, q)
 
 
 @jit

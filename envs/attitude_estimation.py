@@ -12,9 +12,10 @@ from gymnasium.utils import EzPickle
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle
+from biso_cosim.envs._kernels import _angle, _angles_to
 from biso_cosim.frames import quat_from_euler
 from biso_cosim.routes import Route
+from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["AttitudeEstimationEnv"]
 
@@ -159,9 +160,8 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self._require_running()
         q = self._action_attitude(self._check_action(action))
         info = self._state_info()
-        error = _angle(q, info["q_wb_true"])
+        error, info["baseline_error_rad"] = _angles_to(q, info["q_wb_baseline"], info["q_wb_true"])
         info["error_rad"] = error
-        info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
         reward = -error
         info["reward_attitude"] = reward
         self._advance()
@@ -179,7 +179,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         kernel normalises, so an action equal to an estimate scores exactly its error)."""
         if self.action_type == "euler":
             return quat_from_euler(a[0], a[1], a[2])
-        if not np.any(a):
+        if not any(a.tolist()):
             raise ValueError("action quaternion must not be all zeros")
         return a
 
@@ -189,8 +189,8 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             self._baseline_q = outputs["baseline"].q_wb[-1].copy()
 
     def _state_info(self) -> dict[str, Any]:
-        newest = self._newest
-        return {"t_s": float(newest.t_s[0]), "q_wb_true": newest.q_wb[0].copy(),
+        row = self._newest.packed[0]
+        return {"t_s": float(row[0]), "q_wb_true": row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].copy(),
                 "q_wb_baseline": self._baseline_q.copy(), "distance_m": self._sim.vehicle.driver.state.s_m}
 
     def _observation(self) -> np.ndarray:

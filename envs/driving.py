@@ -15,6 +15,7 @@ from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _angle, _dead_reckon, _route_ahead
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
+from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["DrivingEnv"]
 
@@ -239,7 +240,7 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     def _true_pose(self) -> tuple[float, float, float]:
         x, y = self._rear_axle_xy()
-        w, qx, qy, qz = self._newest.q_wb[0]
+        w, qx, qy, qz = self._newest.packed[0, Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].tolist()
         return x, y, math.atan2(2.0 * (qx * qy + w * qz), 1.0 - 2.0 * (qy * qy + qz * qz))
 
     def _route_ahead(self, x: float, y: float, yaw: float) -> np.ndarray:
@@ -251,34 +252,39 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _state_info(self) -> dict[str, Any]:
+        """The step's info; it also keeps the true pose for the observation of the same step."""
         vehicle = self._sim.vehicle
         state = vehicle.driver.state
         newest = self._newest
-        w, x, y, _ = newest.q_wb[0]
+        q_true = newest.q_wb[0]
+        _, x, y, _ = q_true.tolist()
         tilt = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
-        true_pose = self._true_pose()
+        self._true_pose_now = true_pose = self._true_pose()
+        s_m, cross_track_m = state.s_m, state.cross_track_m
+        pose = self._pose
         return {
-            "distance_m": state.s_m,
-            "cross_track_m": state.cross_track_m,
+            "distance_m": s_m,
+            "cross_track_m": cross_track_m,
             "speed_mps": float(newest.speed_mps[0]),
             "tilt_rad": tilt,
-            "attitude_error_rad": _angle(self._q_est, newest.q_wb[0]),
-            "nav_pose": self._pose.copy(),
+            "attitude_error_rad": _angle(self._q_est, q_true),
+            "nav_pose": pose.copy(),
             "true_pose": np.array(true_pose),
-            "pose_error_m": math.hypot(self._pose[0] - true_pose[0], self._pose[1] - true_pose[1]),
-            "heading_error_rad": math.remainder(self._pose[2] - true_pose[2], 2.0 * math.pi),
+            "pose_error_m": math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1]),
+            "heading_error_rad": math.remainder(pose[2] - true_pose[2], 2.0 * math.pi),
             "rolled_over": tilt > self.rollover_tilt_rad,
-            "off_route": abs(state.cross_track_m) > self.max_cross_track_m,
-            "finished": state.s_m >= self._sim.route.path.length_m - _END_TOLERANCE_M,
+            "off_route": abs(cross_track_m) > self.max_cross_track_m,
+            "finished": s_m >= self._sim.route.path.length_m - _END_TOLERANCE_M,
         }
 
     def _observation(self) -> np.ndarray:
+        """The observation after ``_state_info`` of the same step (whose true pose it uses)."""
         vehicle = self._sim.vehicle
-        pose = self._pose if self.pose_source == "estimate" else np.array(self._true_pose())
+        pose = self._pose if self.pose_source == "estimate" else np.array(self._true_pose_now)
         wheels = self._newest.wheel_rates[0] * vehicle.index.wheel_radius_m
         steering = vehicle.data.sensordata[vehicle.index.steering_angle]
         return np.concatenate([*self._sensor_parts(), self._q_est, wheels, steering, pose,
-                               self._route_ahead(*pose).ravel()])
+                               self._route_ahead(*pose.tolist()).ravel()])
 
 
 finish_docstring(DrivingEnv)

@@ -174,14 +174,16 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._check_corners(fixed)
         self._gains = self._initial_gains.copy()
         self._tuned_q = np.array([1.0, 0.0, 0.0, 0.0])
+        self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
         self._baseline_q = self._tuned_q.copy()
 
     def _tuned_values(self, params: Any) -> dict[str, float]:
         """The tuned parameters' values in an estimator's parameter record."""
         values = {}
+        gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
         for name in self.tuning:
-            if isinstance(params, BisoParams) and name in ("k", "k_p", "cutoff_hz", CROSS_LINK_RATIO):
-                value = _biso_gains_of(params)[name]
+            if name in gains:
+                value = gains[name]
             else:
                 value = getattr(params, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -265,11 +267,13 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def _params_in_force(self) -> dict[str, float]:
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
         params = self._sim.estimators["tuned"].params
-        values = self._tuned_values(params)
-        if CROSS_LINK_RATIO in self.tuning:
-            gains = _biso_gains_of(params)
-            values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
-        return values
+        if params is not self._in_force[0]:  # (steps that keep the gains reuse the values)
+            values = self._tuned_values(params)
+            if CROSS_LINK_RATIO in self.tuning:
+                gains = _biso_gains_of(params)
+                values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
+            self._in_force = (params, values)
+        return dict(self._in_force[1])
 
     def _measure(self, truth, outputs) -> dict[str, Any]:
         """Mean errors of both copies over the step's samples, and the state at the newest."""

@@ -352,3 +352,78 @@ def test_without_a_log_the_periods_are_the_same_and_memory_stays_constant():
     np.testing.assert_array_equal(logged.step()[0].accel_b, bare.step()[0].accel_b)
     with pytest.raises(TypeError, match="keep_log"):
         CoSimulation("figure8", duration_s=1.0, keep_log=1)
+
+
+def test_sensor_inputs_kernel_equals_field_b_and_the_truth_columns():
+    """The co-simulation's one kernel for the sensor's inputs (no local disturbances) gives
+    the truth's rate and specific force and MagneticEnvironment.field_b, bit for bit, and
+    reports a position that is not finite (field_b's refusal)."""
+    from biso_cosim._period import _sensor_inputs
+    from biso_cosim.vehicle.sim import Truth
+
+    sim = CoSimulation("figure8", duration_s=2.0, estimators=("poisson",))
+    truth = Truth.concatenate([sim._drive() for _ in range(40)])
+    omega, force, mag = np.empty((3, len(truth), 3))
+    field = sim.magnetic.earth.field_enu_ut
+    assert _sensor_inputs(truth.packed, field, omega, force, mag)
+    assert np.array_equal(omega, truth.omega_b) and np.array_equal(force, truth.specific_force_b)
+    assert np.array_equal(mag, sim.magnetic.field_b(truth.q_wb, truth.pos_w))
+    bad = truth.packed.copy()
+    bad[5, 12] = np.nan
+    assert not _sensor_inputs(bad, field, omega, force, mag)
+
+
+def _assert_same_samples(a, b):
+    for name in ("t_s", "gyro_b", "accel_b", "mag_b", "mag_fresh", "temperature_c", "flags", "dtheta", "dv",
+                 "dtheta_sub", "dv_sub"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert (x is None) == (y is None), name
+        if x is not None:
+            assert x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True), name
+    assert np.array_equal(a.raw.words, b.raw.words) and np.array_equal(a.raw.status, b.raw.status)
+
+
+@pytest.mark.parametrize("options", [
+    {},
+    {"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
+     "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}), "gnss_kalman")},
+])
+def test_period_kernel_equals_the_general_path(options):
+    """step() senses a period by one kernel (truth packing, sensor inputs, MPU-9250, truth at
+    the samples): the same numbers, bit for bit, as the general path of run()'s blocks."""
+    opts = dict(options)
+    estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
+    specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label="biso_coning") for e in estimators]
+    fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, **opts)
+    general = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, **opts)
+    while not fused.done:
+        samples, truth, outputs = fused.step()
+        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        _assert_same_samples(samples, want_samples)
+        assert np.array_equal(truth.packed, want_truth.packed)
+        for key, out in outputs.items():
+            assert np.array_equal(out.q_wb, want_outputs[key].q_wb) and np.array_equal(out.flags, want_outputs[key].flags)
+    assert np.array_equal(fused.result().truth.packed, general.result().truth.packed)
+
+
+@pytest.mark.parametrize(("column", "message"), [(1, "omega_b"), (12, "p_w must be finite")])
+def test_period_kernel_refuses_bad_rows_as_the_general_path_does(monkeypatch, column, message):
+    """A non-finite rate or position in the physics rows: the general path's error, and the
+    sensor unchanged (the kernel refuses before it changes anything)."""
+    sim = CoSimulation("figure8", duration_s=2.0, estimators=("poisson",))
+    vehicle = sim.vehicle
+    gather_column = int(vehicle._gather[column - 1])
+    step_rows = vehicle._step_rows
+
+    def poisoned(n=None):
+        rows, first = step_rows(n)
+        rows[3, gather_column] = np.nan
+        return rows, first
+
+    sim.step()
+    before = sim.imu.get_state()
+    monkeypatch.setattr(vehicle, "_step_rows", poisoned)
+    with pytest.raises(ValueError, match=message):
+        sim.step()
+    after = sim.imu.get_state()
+    assert all(np.array_equal(after[key], before[key]) for key in before)

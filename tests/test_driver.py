@@ -40,3 +40,18 @@ def test_driver_state_is_a_copyable_record():
     again = pickle.loads(pickle.dumps(copy.deepcopy(state)))
     assert again.s_m == state.s_m > 10.0 and again.index == state.index
     assert "cross_track_m=" in repr(state)
+
+
+@pytest.mark.parametrize("route", ["figure8", "parking"])
+def test_drive_kernel_equals_measure_command_apply(route):
+    """VehicleSim.drive (one kernel from sensordata to ctrl) against its parts called from Python."""
+    fused, parts = VehicleSim(load_route(route)), VehicleSim(load_route(route))
+    for _ in range(int(40.0 * fused.control_rate_hz)):
+        got = fused.drive()
+        want = parts.driver.command(*parts._measure())
+        parts.apply(want)
+        assert got == want
+        assert np.array_equal(fused.data.ctrl, parts.data.ctrl)
+        assert np.array_equal(fused.driver.state.array, parts.driver.state.array)
+        fused.step()
+        parts.step()

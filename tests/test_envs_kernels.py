@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from biso_cosim.envs._kernels import _angle, _dead_reckon, _mean_angle, _push_window, _route_ahead
+from biso_cosim.envs._kernels import _angle, _angles_to, _dead_reckon, _mean_angle, _push_window, _route_ahead
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
 
@@ -48,6 +48,7 @@ def test_angle_is_quat_angle_between_bit_for_bit():
     for value in expected[:7]:
         total += value
     assert _mean_angle(p[:7], q[:7]) == total / 7
+    assert _angles_to(p[0], p[1], q[2]) == (_angle(p[0], q[2]), _angle(p[1], q[2]))
 
 
 def test_dead_reckon_matches_a_plain_loop():

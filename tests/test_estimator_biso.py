@@ -573,3 +573,31 @@ def test_gyro_step_in_the_loop_gets_the_sensor_increments():
         est = make_estimator("biso", 200.0, gyro_step=step, declination_rad=sim.earth.declination_rad)
         q = est.update(r.imu.gyro_b, r.imu.accel_b, r.imu.mag_b, dtheta_b=dth).q_wb
         np.testing.assert_array_equal(q, r.estimates[label][0])
+
+
+@pytest.mark.parametrize("reading", ["D", "L"])
+@pytest.mark.parametrize("latitude", [None, 0.9])
+def test_gain_changes_take_the_short_path_to_the_same_coefficients(reading, latitude):
+    """set_params with equal scalar gains (GainTuning's change every step) derives only the
+    gain-dependent coefficients: the same array, bit for bit, as the full derivation; other
+    changes and invalid gains take the full path (its checks and messages)."""
+    from biso_cosim.estimators.biso import biso_coefficients
+
+    rng = np.random.default_rng(4)
+    est = make_estimator("biso", 200.0, reading=reading, latitude_rad=latitude)
+    for i in range(60):
+        if i % 3 == 0:
+            changes = {"cutoff_hz": float(rng.uniform(0.01, 20.0)), "k": None, "k_p": None}
+        else:
+            changes = {"k": float(rng.uniform(0.01, 50.0)), "k_p": float(rng.uniform(0.0, 50.0)), "cutoff_hz": None}
+        est.set_params(**changes)
+        assert np.array_equal(est.coefficients, biso_coefficients(est.params, 200.0))
+        assert all(getattr(est.params, name) == value for name, value in changes.items())
+    before = (est.params, est.coefficients)
+    for bad, message in (({"k": 0.0}, "not asymptotically stable"), ({"k": float("nan")}, "k"),
+                         ({"cutoff_hz": 1.0}, "either cutoff_hz or k")):
+        with pytest.raises(ValueError, match=message):
+            est.set_params(**bad)
+        assert est.params == before[0] and np.array_equal(est.coefficients, before[1])
+    est.set_params(k=(1.0, 2.0, 3.0, 4.0), k_p=0.5)  # per-channel gains: the full path
+    assert np.array_equal(est.coefficients, biso_coefficients(est.params, 200.0))

@@ -117,6 +117,33 @@ def test_output_timing_and_chunk_ownership(smplrt_div):
     np.testing.assert_allclose(s.accel_b, force[idx], atol=1e-12)
 
 
+def test_output_bound_holds_every_output_a_call_completes():
+    """The caller allocates the kernel's outputs by output_bound; it must never be short
+    (``_n_outputs`` written plainly), and it wastes at most the ticks of one input row."""
+    from biso_cosim.sensors._kernels import output_bound
+
+    def n_outputs(up, out_div, n_in, tick, n):
+        if n == 0:
+            return 0
+        b0 = tick
+        b1 = b0 + (1 + (n - 1) * up if n_in == 0 else n * up) - 1
+        return b1 // out_div - (b0 + out_div - 1) // out_div + 1
+
+    for up in (1, 8):
+        for out_div in (1, 5, 8, 40):
+            for tick in range(3 * out_div):
+                for n in range(60):
+                    for n_in in ((0,) if tick == 0 else (1,)):
+                        due = n_outputs(up, out_div, n_in, tick, n)
+                        assert due <= output_bound(n, up, out_div) <= due + up // out_div + 1
+    # and through the chip in odd chunks, upsampling (8 kHz from 1 kHz) and decimating
+    for registers in ({"dlpf_cfg": 0}, {"smplrt_div": 7}):
+        arrays = motion(997)[:3]
+        whole = MPU9250("mpu9250", seed=2, registers=registers).simulate(*arrays)
+        assert_same(stream(MPU9250("mpu9250", seed=2, registers=registers), arrays, [1, 2, 3, 5, 7, 11, 13] * 40 + [500]),
+                    whole)
+
+
 def test_bypass_rates_upsample_and_decimate():
     # DLPF_CFG = 0: gyro at 8 kHz, output 8 kHz; the truth at 1 kHz is interpolated linearly
     imu = MPU9250("ideal", registers={"dlpf_cfg": 0})

@@ -393,16 +393,57 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
     else:  # no Earth or transport rate: the identity, without two kernel calls
         c[_C_EG] = c[_C_EGI] = 1.0
     c[_C_WG:_C_WG + 3] = wg
-    c[_C_G:_C_G + 16] = (_T_GOST.T @ g_gost @ _T_GOST).ravel()
+    _g_in_q(g_gost, _T_GOST, c[_C_G:_C_G + 16])
     c[_C_GLIM], c[_C_ALIM] = glim, alim
     if mode == MODE_CLOSED:
         c[_C_EA:_C_EA + 4] = _closed_transition(c[_C_K], c[_C_KP], wg[0], wg[1], wg[2], h)
     return c
 
 
+_GAIN_NAMES = frozenset({"k", "k_p", "cutoff_hz"})
+
+
+def _with_closed_gains(coef: np.ndarray, params: BisoParams, gains: tuple) -> np.ndarray:
+    """A copy of closed-mode coefficients ``coef`` with the equal gains ``gains`` of ``params``
+    (the entries ``biso_coefficients`` derives from the gains, by its expressions)."""
+    c = coef.copy()
+    _set_closed_gains(c, gains[0][0], gains[1][0], 0.5 if params.reading == "L" else 1.0, _PATTERNS[12], _T_GOST)
+    return c
+
+
 # --------------------------------------------------------------------------------------
 # Kernels
 # --------------------------------------------------------------------------------------
+
+
+@jit
+def _g_in_q(g, t, out):
+    """out (16,) = (tᵀ g t) row-major: G of the paper's λ components in q_wb components."""
+    for i in range(4):
+        for j in range(4):
+            total = 0.0
+            for b in range(4):
+                m = 0.0
+                for a in range(4):
+                    m += t[a, i] * g[a, b]
+                total += m * t[b, j]
+            out[4 * i + j] = total
+
+
+@jit
+def _set_closed_gains(c, k, kp, scale, pattern, t):
+    """The entries of closed-mode coefficients ``c`` that depend on the equal gains k, k_p:
+    as ``biso_coefficients`` derives them (``correction_matrix`` element by element)."""
+    g = np.empty((4, 4))
+    for a in range(4):
+        for b in range(4):
+            g[a, b] = scale * (-(k if a == b else 0.0) - pattern[a, b] * kp)
+    _g_in_q(g, t, c[_C_G:_C_G + 16])
+    c[_C_K] = scale * k
+    c[_C_KP] = scale * kp
+    q = _closed_transition(c[_C_K], c[_C_KP], c[_C_WG], c[_C_WG + 1], c[_C_WG + 2], c[_C_H])
+    for i in range(4):
+        c[_C_EA + i] = q[i]
 
 
 @jit(inline="always")
@@ -674,6 +715,24 @@ class BisoEstimator(Estimator):
     def _coefficients(self, params: BisoParams, fs_hz: float) -> np.ndarray:
         return biso_coefficients(params, fs_hz)
 
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters without touching the state (see ``Estimator.set_params``).
+
+        A tuning loop's change, equal scalar gains (``k``, ``k_p`` or ``cutoff_hz``) of the
+        closed-form correction (pattern 12, k > 0) to other such gains, takes a short path:
+        only the coefficients that depend on the gains are derived again, by the same
+        expressions as ``biso_coefficients`` (the same numbers; tested)."""
+        if changes.keys() <= _GAIN_NAMES and self._coef[_C_MODE] == MODE_CLOSED:
+            params = object.__new__(BisoParams)  # a frozen record: the copy is set field by field
+            params.__dict__.update(self._params.__dict__)
+            for name, value in changes.items():
+                object.__setattr__(params, name, value)
+            k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
+            if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
+                self._params, self._coef = params, _with_closed_gains(self._coef, params, (k, kp))
+                return
+        super().set_params(**changes)
+
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)
 
@@ -692,6 +751,9 @@ class BisoEstimator(Estimator):
         else:
             check_rows(step, "dtheta_b", extra["dtheta_b"].shape[1], step.m_dtheta, "ΔΘ")
         return extra
+
+    def _input_requirements(self) -> tuple:
+        return self._params.gyro_step, self._params.latitude_rad is None
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
         step = gyro_step_algorithm(self._params)

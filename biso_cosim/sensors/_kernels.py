@@ -356,20 +356,24 @@ def _n_outputs(cp, cs, n):
 
 
 @jit
-def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, order, nsub):
-    """Run the chip over input rows; returns the outputs of the ticks they complete.
+def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, order, nsub, floats, words,
+              status_bytes, flags_out):
+    """Run the chip over input rows; writes the outputs of the ticks they complete.
 
-    ``temp`` holds one value per row, or is empty (then ``temp_default`` is used).
-    Returns (status, floats, words, status_bytes, flags) for k outputs:
+    ``temp`` holds one value per row, or is empty (then ``temp_default`` is used). The
+    caller allocates the outputs for up to K rows (``output_bound``; more than a call
+    completes), zero-filled except ``floats``:
 
-    * floats: float64 blocks ``t (k) | gyro (k, 3) | accel (k, 3) | mag (k, 3) |
-      temperature (k) | dtheta (k, order, 3) | dv | dtheta_sub (k, nsub, 3) | dv_sub``;
-    * words: int16 (k, 10) registers ``ACCEL_X..Z, TEMP, GYRO_X..Z, HX, HY, HZ``;
-    * status_bytes: uint8 (k, 3) ``mag fresh, ST1, ST2``;
-    * flags: int32 (k,).
+    * floats (K·(11 + 6·order + 6·nsub),): float64 blocks of K rows each, ``t (K) |
+      gyro (K, 3) | accel (K, 3) | mag (K, 3) | temperature (K) | dtheta (K, order, 3) | dv |
+      dtheta_sub (K, nsub, 3) | dv_sub``, of which the first k rows are written;
+    * words: int16 (K, 10) registers ``ACCEL_X..Z, TEMP, GYRO_X..Z, HX, HY, HZ``;
+    * status_bytes: uint8 (K, 3) ``mag fresh, ST1, ST2``;
+    * flags_out: int32 (K,).
 
-    Few arrays, because returning each array costs about half a microsecond. status is
-    -1 on success or the index of the first non-finite input row (nothing has changed).
+    Returns (status, k): status -1 on success, the index of the first non-finite input row,
+    or -2 when the outputs hold fewer than the k rows due (in both cases nothing has changed). The outputs are the caller's because arrays made here
+    cost about a microsecond each to hand back to Python.
     """
     cp = cp_arr[0]
     cs = cs_arr[0]
@@ -377,26 +381,25 @@ def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, or
     gs, as_ = chs[0], chs[1]
     n = omega.shape[0]
     bad = _first_bad_row(omega, force, mag, temp)
-    kout = 0 if bad >= 0 else _n_outputs(cp, cs, n)
-    floats = np.empty(kout * (11 + 6 * order + 6 * nsub))
-    words = np.zeros((kout, 10), dtype=np.int16)
-    status_bytes = np.zeros((kout, 3), dtype=np.uint8)
-    flags_out = np.zeros(kout, dtype=np.int32)
     if bad >= 0:
-        return bad, floats, words, status_bytes, flags_out
-    t_out = floats[:kout]
-    gyro_out = floats[kout : 4 * kout].reshape((kout, 3))
-    accel_out = floats[4 * kout : 7 * kout].reshape((kout, 3))
-    mag_out = floats[7 * kout : 10 * kout].reshape((kout, 3))
-    temp_out = floats[10 * kout : 11 * kout]
-    o = 11 * kout
-    dtheta = floats[o : o + 3 * kout * order].reshape((kout, order, 3))
-    o += 3 * kout * order
-    dv = floats[o : o + 3 * kout * order].reshape((kout, order, 3))
-    o += 3 * kout * order
-    dtheta_sub = floats[o : o + 3 * kout * nsub].reshape((kout, nsub, 3))
-    o += 3 * kout * nsub
-    dv_sub = floats[o : o + 3 * kout * nsub].reshape((kout, nsub, 3))
+        return bad, 0
+    kout = _n_outputs(cp, cs, n)
+    K = flags_out.shape[0]
+    if kout > K:  # outputs too short (see output_bound): nothing has changed
+        return -2, kout
+    t_out = floats[:K]
+    gyro_out = floats[K : 4 * K].reshape((K, 3))
+    accel_out = floats[4 * K : 7 * K].reshape((K, 3))
+    mag_out = floats[7 * K : 10 * K].reshape((K, 3))
+    temp_out = floats[10 * K : 11 * K]
+    o = 11 * K
+    dtheta = floats[o : o + 3 * K * order].reshape((K, order, 3))
+    o += 3 * K * order
+    dv = floats[o : o + 3 * K * order].reshape((K, order, 3))
+    o += 3 * K * order
+    dtheta_sub = floats[o : o + 3 * K * nsub].reshape((K, nsub, 3))
+    o += 3 * K * nsub
+    dv_sub = floats[o : o + 3 * K * nsub].reshape((K, nsub, 3))
 
     cur = np.empty(N_IN)
     x = np.empty(3)
@@ -488,7 +491,13 @@ def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, or
         for c in range(N_IN):
             cs.prev_in[c] = cur[c]
         cs.n_in += 1
-    return -1, floats, words, status_bytes, flags_out
+    return -1, kout
+
+
+def output_bound(n: int, ticks_per_input: int, out_div: int) -> int:
+    """An upper bound of the outputs n input rows complete (``_n_outputs``): they span at
+    most n·up base ticks, of which every out_div-th is an output."""
+    return n * ticks_per_input // out_div + 1
 
 
 @jit

@@ -233,6 +233,7 @@ class MPU9250:
             p["per_output"] = reg.gyro_samples_per_output if sensor == "gyro" else self._accel_per_output
         c["n_gm"] = n_gm
         self._cp, self._ch = cp, ch
+        self._ticks_per_input, self._out_div = int(cp[0]["up"]), int(cp[0]["out_div"])  # for the output bound
         self._new_state()
 
     def _new_state(self) -> None:
@@ -342,33 +343,58 @@ class MPU9250:
             increments, subintervals = self._check_increments(increments, subintervals)
         else:
             increments = subintervals = 0
-        res = _kernel(self._cp, self._ch, self._cs, self._chs, w, f, m, temp, temp_default, increments, subintervals)
-        if res[0] >= 0:
-            row = int(res[0])
-            bad = [name for name, a in (("omega_b", w), ("specific_force_b", f), ("mag_b", m)) if not np.all(np.isfinite(a[row]))]
+        out = self._outputs(n, increments, subintervals)
+        bad, k = _kernel(self._cp, self._ch, self._cs, self._chs, w, f, m, temp, temp_default, increments,
+                         subintervals, *out)
+        if bad >= 0:
+            row = int(bad)
+            names = [name for name, a in (("omega_b", w), ("specific_force_b", f), ("mag_b", m))
+                     if not np.all(np.isfinite(a[row]))]
             if temp.size and not math.isfinite(temp[row]):
-                bad.append("temperature_c")
-            raise ValueError(f"{' and '.join(bad)} must be finite: row {row} is not (nothing was simulated)")
-        _, floats, words, status_bytes, flags = res
-        k = flags.shape[0]
+                names.append("temperature_c")
+            raise ValueError(f"{' and '.join(names)} must be finite: row {row} is not (nothing was simulated)")
+        return self._samples(bad, k, out, increments, subintervals)
+
+    # -- the kernel's arrays (also for callers that run the kernel inside their own) ----
+
+    def _kernel_state(self) -> tuple:
+        """The kernel's first four arguments (parameters and state: the chip's own arrays)
+        and the default die temperature."""
+        return self._cp, self._ch, self._cs, self._chs, self._temp_default
+
+    def _outputs(self, n: int, increments: int, subintervals: int) -> tuple[np.ndarray, ...]:
+        """The kernel's output arrays for n input rows (``K.output_bound`` rows of each)."""
+        bound = K.output_bound(n, self._ticks_per_input, self._out_div)
+        return (np.empty(bound * (11 + 6 * (increments + subintervals))), np.zeros((bound, 10), dtype=np.int16),
+                np.zeros((bound, 3), dtype=np.uint8), np.zeros(bound, dtype=np.int32))
+
+    @staticmethod
+    def _samples(status: int, k: int, out: tuple[np.ndarray, ...], increments: int, subintervals: int) -> ImuSamples:
+        """The samples in the kernel's outputs ``out`` (status -1: k rows written)."""
+        floats, words, status_bytes, flags = out
+        B = flags.shape[0]
+        if status == -2:
+            raise RuntimeError(f"MPU9250: {k} outputs due but room for {B} (output_bound is wrong)")
         inc = None
         if increments or subintervals:
-            o, r, m3 = 11 * k, 3 * k * increments, 3 * k * subintervals
+            o, r, m3 = 11 * B, 3 * B * increments, 3 * B * subintervals
             inc = (
-                floats[o : o + r].reshape(k, increments, 3) if increments else None,
-                floats[o + r : o + 2 * r].reshape(k, increments, 3) if increments else None,
-                floats[o + 2 * r : o + 2 * r + m3].reshape(k, subintervals, 3) if subintervals else None,
-                floats[o + 2 * r + m3 : o + 2 * r + 2 * m3].reshape(k, subintervals, 3) if subintervals else None,
+                floats[o : o + 3 * k * increments].reshape(k, increments, 3) if increments else None,
+                floats[o + r : o + r + 3 * k * increments].reshape(k, increments, 3) if increments else None,
+                floats[o + 2 * r : o + 2 * r + 3 * k * subintervals].reshape(k, subintervals, 3) if subintervals else None,
+                floats[o + 2 * r + m3 : o + 2 * r + m3 + 3 * k * subintervals].reshape(k, subintervals, 3)
+                if subintervals else None,
             )
+        status_bytes = status_bytes[:k]
         return ImuSamples(
             floats[:k],
-            floats[k : 4 * k].reshape(k, 3),
-            floats[4 * k : 7 * k].reshape(k, 3),
-            floats[7 * k : 10 * k].reshape(k, 3),
+            floats[B : B + 3 * k].reshape(k, 3),
+            floats[4 * B : 4 * B + 3 * k].reshape(k, 3),
+            floats[7 * B : 7 * B + 3 * k].reshape(k, 3),
             status_bytes[:, 0].view(np.bool_),
-            floats[10 * k : 11 * k],
-            flags,
-            RawSamples(words, status_bytes[:, 1:]),
+            floats[10 * B : 10 * B + k],
+            flags[:k],
+            RawSamples(words[:k], status_bytes[:, 1:]),
             *(inc or ()),
         )
 

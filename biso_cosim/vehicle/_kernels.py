@@ -100,6 +100,29 @@ def _track(px, py, ps, state, x, y):
 
 
 @jit
+def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
+                  sensordata, layout, ctrl, actuators, out):
+    """A control period of the scripted driver from MuJoCo's ``sensordata`` straight into
+    ``ctrl``: what ``VehicleSim._measure`` reads (the same expressions), ``_driver_command``,
+    and ``VehicleSim.apply``. ``layout``: sensordata indices of the IMU quaternion's w, the
+    rear axle's x, its forward speed, the first wheel rate, and the number of wheels;
+    ``actuators``: ctrl indices of steering, drive, then the brakes."""
+    i = layout[0]
+    w, x, y, z = sensordata[i], sensordata[i + 1], sensordata[i + 2], sensordata[i + 3]
+    yaw = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+    wheels = 0.0
+    for j in range(layout[3], layout[3] + layout[4]):
+        wheels += sensordata[j]
+    _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
+                    sensordata[layout[1]], sensordata[layout[1] + 1], yaw, sensordata[layout[2]],
+                    wheels / layout[4], out)
+    ctrl[actuators[0]] = out[0]
+    ctrl[actuators[1]] = out[1]
+    for j in range(2, actuators.shape[0]):
+        ctrl[actuators[j]] = out[2]
+
+
+@jit
 def _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp,
                     p, state, x, y, yaw, speed, wheel_speed, out):
     """One control period of the scripted driver: out = (steer_rad, drive, brake)."""

@@ -15,7 +15,7 @@ import numpy as np
 from mujoco import rollout
 
 from biso_cosim.frames import _q_from_euler
-from biso_cosim.vehicle._kernels import _interpolate_rows, _pack_rows
+from biso_cosim.vehicle._kernels import _drive_period, _interpolate_rows, _pack_rows
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -124,7 +124,14 @@ class VehicleSim:
         # after every step (no Python per physics step); its arrays are allocated once
         self._rollout = rollout.Rollout(nthread=0)
         self._rollout_io = self._rollout_arrays(self.steps_per_control)
+        self._models, self._datas, self._dt_s = [self.model], [self.data], float(self.model.opt.timestep)
+        self._qacc_warmstart, self._ctrl, self._sensordata = self.data.qacc_warmstart, self.data.ctrl, self.data.sensordata
         ix = self.index
+        self._steer_id, self._drive_id, self._brake_ids = int(ix.steer), int(ix.drive), ix.brakes.tolist()
+        self._actuators = np.array([ix.steer, ix.drive, *ix.brakes], dtype=np.int64)
+        self._sensor_layout = np.array([ix.quat.start, ix.rear_axle_pos.start, ix.rear_axle_vel_b.start,
+                                        ix.wheel_rates.start, ix.wheel_rates.stop - ix.wheel_rates.start], dtype=np.int64)
+        self._axle_x = int(ix.rear_axle_pos.start)
         # sensordata columns of Truth's columns 1..22, in order
         self._settled: tuple[np.ndarray, np.ndarray] | None = None
         self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
@@ -165,10 +172,11 @@ class VehicleSim:
 
     # ------------------------------------------------------------------ stepping
     def apply(self, command: DriverCommand) -> None:
-        d, ix = self.data, self.index
-        d.ctrl[ix.steer] = command.steer_rad
-        d.ctrl[ix.drive] = command.drive
-        d.ctrl[ix.brakes] = command.brake
+        ctrl = self._ctrl
+        ctrl[self._steer_id] = command.steer_rad
+        ctrl[self._drive_id] = command.drive
+        for i in self._brake_ids:  # scalar stores: cheaper than an index-array store every period
+            ctrl[i] = command.brake
 
     def _measure(self) -> tuple[list[float], float, float, float]:
         """What the driver measures, as plain floats: rear-axle position, yaw, forward speed,
@@ -182,51 +190,63 @@ class VehicleSim:
         return axle, yaw, sd[ix.rear_axle_vel_b.start], sum(wheels) / len(wheels)
 
     def drive(self) -> DriverCommand:
-        """Ask the driver for the next control period's command from the current state."""
-        command = self.driver.command(*self._measure())
-        self.apply(command)
-        return command
+        """Ask the driver for the next control period's command from the current state, and
+        apply it: one kernel from the sensors to the controls (``_measure``, the driver's
+        ``command`` and ``apply`` in one call; the same numbers, tested)."""
+        out = self._drive()
+        return DriverCommand(steer_rad=float(out[0]), drive=float(out[1]), brake=float(out[2]))
+
+    def _drive(self) -> np.ndarray:
+        """``drive`` for callers that need no command record: the driver's output array."""
+        driver = self.driver
+        out = driver._out
+        _drive_period(*driver._arrays, driver._params, driver.state.array, self._sensordata, self._sensor_layout,
+                      self._ctrl, self._actuators, out)
+        return out
 
     def observe_route(self) -> None:
         """Update the driver's progress and cross-track error without driving (an agent drives)."""
-        axle, _, _, _ = self._measure()
-        self.driver.track(axle)
+        sd, i = self._sensordata, self._axle_x
+        self.driver.track((float(sd[i]), float(sd[i + 1])))
 
     def step(self, n: int | None = None) -> Truth:
         """Advance ``n`` physics steps (default: one control period) with the controls held;
         truth of those steps. The same steps as ``n`` calls of ``mj_step``, bit for bit."""
+        return self._truth(*self._step_rows(n))
+
+    def _step_rows(self, n: int | None = None) -> tuple[np.ndarray, int]:
+        """``step`` without packing the truth: MuJoCo's sensordata after each of the ``n``
+        steps (a buffer that the next call overwrites) and the index of the first step."""
         m, d = self.model, self.data
         n = self.steps_per_control if n is None else n
         io = self._rollout_io if n == self._rollout_io[2].shape[1] else self._rollout_arrays(n)
-        state0, warmstart, control, sensordata = io
-        mujoco.mj_getState(m, d, state0[0], _ROLLOUT_STATE)
-        warmstart[0] = d.qacc_warmstart
-        control[0] = d.ctrl
-        t_end_s, dt_s = d.time, m.opt.timestep
-        for _ in range(n):  # the clock as mj_step advances it
-            t_end_s += dt_s
-        self._rollout.rollout([m], [d], state0, control, control_spec=_CONTROL, skip_checks=True, nstep=n,
-                              initial_warmstart=warmstart, state=None, sensordata=sensordata)
-        if d.time != t_end_s:
+        state0, warmstart, control, sensordata, (state_row, warm_row, control_rows, sensor_rows) = io
+        mujoco.mj_getState(m, d, state_row, _ROLLOUT_STATE)
+        warm_row[:] = self._qacc_warmstart  # (views of MjData's arrays, and of the batch's rows, made once)
+        control_rows[:] = self._ctrl
+        t0_s = d.time
+        self._rollout.rollout(self._models, self._datas, state0, control, control_spec=_CONTROL, skip_checks=True,
+                              nstep=n, initial_warmstart=warmstart, state=None, sensordata=sensordata)
+        if not d.time - t0_s > (n - 0.5) * self._dt_s:  # the clock did not advance n steps
             # the rollout stops at a MuJoCo warning (e.g. a bad velocity, on which MuJoCo resets
             # the data and goes on): the period again from its start, one mj_step at a time
             self.periods_with_warnings += 1
-            mujoco.mj_setState(m, d, state0[0], _ROLLOUT_STATE)
-            d.qacc_warmstart[:] = warmstart[0]
-            rows = sensordata[0]
+            mujoco.mj_setState(m, d, state_row, _ROLLOUT_STATE)
+            d.qacc_warmstart[:] = warm_row
             for k in range(n):
                 mujoco.mj_step(m, d)
-                rows[k] = d.sensordata
+                sensor_rows[k] = d.sensordata
         first = self.steps_done
         self.steps_done += n
-        return self._truth(sensordata[0], first)
+        return sensor_rows, first
 
-    def _rollout_arrays(self, n: int) -> tuple[np.ndarray, ...]:
+    def _rollout_arrays(self, n: int) -> tuple:
         """Input and output arrays of a rollout of ``n`` steps: initial state, warm start,
-        controls, sensordata (batch of one)."""
+        controls, sensordata (batch of one), and the tuple of their single rows."""
         m = self.model
-        return (np.empty((1, mujoco.mj_stateSize(m, _ROLLOUT_STATE))), np.empty((1, m.nv)),
-                np.empty((1, n, m.nu)), np.empty((1, n, m.nsensordata)))
+        arrays = (np.empty((1, mujoco.mj_stateSize(m, _ROLLOUT_STATE))), np.empty((1, m.nv)),
+                  np.empty((1, n, m.nu)), np.empty((1, n, m.nsensordata)))
+        return (*arrays, tuple(a[0] for a in arrays))
 
     def current_truth(self) -> Truth:
         """The truth of the current state as one row (at the time of the last step's start)."""

@@ -1,0 +1,64 @@
+"""Jitted glue of a co-simulation period (``biso_cosim.cosim``): from MuJoCo's sensor rows to
+the MPU-9250's samples and the truth at them in one call, where the pieces cost a Python
+call each (and, in the loop, several microseconds each: the physics between periods evicts
+them from the caches)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from biso_cosim._numba import jit
+from biso_cosim.sensors._kernels import _simulate
+from biso_cosim.sensors.magnetic import _rotate_into_body
+from biso_cosim.vehicle._kernels import _interpolate_rows, _pack_rows
+
+__all__ = ["_sense_period", "_sensor_inputs"]
+
+
+@jit
+def _sensor_inputs(packed, field_w, omega_b, force_b, mag_b):
+    """From truth rows packed as ``Truth`` packs them: the body rate and the specific force
+    as contiguous (n, 3) rows, and the world field ``field_w`` (µT, ENU, the same everywhere)
+    rotated into each row's attitude (``MagneticEnvironment.field_b``'s kernel). Returns
+    whether every position is finite (``field_b`` refuses positions that are not)."""
+    for k in range(packed.shape[0]):
+        for a in range(3):
+            omega_b[k, a] = packed[k, 1 + a]
+            force_b[k, a] = packed[k, 4 + a]
+    return _rotate_into_body(packed[:, 7:11], packed[:, 11:14], field_w, mag_b)
+
+
+@jit
+def _sense_period(rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs, chs, temp_default, order, nsub,
+                  t_shift_s, quat_col, packed, floats, words, status_bytes, flags, at):
+    """A control period's sensing in one call, the steps ``CoSimulation._sense`` takes one
+    Python call each: the truth rows packed from MuJoCo's sensordata ``rows``
+    (``VehicleSim._truth``), the MPU-9250's inputs (``_sensor_inputs``), the chip itself
+    (``sensors._kernels._simulate``, writing ``floats``, ``words``, ``status_bytes``,
+    ``flags``), its time stamps shifted by ``t_shift_s``, and the truth at them
+    (``Truth.at``, from the row ``before`` the period when given) into ``at``.
+
+    Returns (status, k): -1 and the number of samples on success; the chip's status when it
+    refused the rows (a row index, or -2), or -3 for a position that is not finite (then
+    nothing has changed but the packed truth); -4 when the samples' time stamps leave the
+    rows (the sensor and the physics out of step).
+    """
+    _pack_rows(rows, gather, first_step, rate_hz, packed)
+    n = packed.shape[0]
+    inputs = np.empty((3, n, 3))
+    if not _sensor_inputs(packed, field_w, inputs[0], inputs[1], inputs[2]):
+        return -3, 0
+    status, k = _simulate(cp, ch, cs, chs, inputs[0], inputs[1], inputs[2], np.empty(0), temp_default, order, nsub,
+                          floats, words, status_bytes, flags)
+    if status != -1:
+        return status, k
+    t_s = floats[:k]
+    if t_shift_s != 0.0:
+        for i in range(k):
+            t_s[i] -= t_shift_s
+    t0_s = before[0, 0] if before.shape[0] else packed[0, 0]
+    if k and (t_s[0] < t0_s - 1e-9 or t_s[k - 1] > packed[n - 1, 0] + 1e-9):
+        return -4, k
+    if k:
+        _interpolate_rows(before, packed, t0_s, rate_hz, t_s, quat_col, at[:k])
+    return -1, k
