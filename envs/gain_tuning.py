@@ -177,10 +177,12 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
         self._baseline_q = self._tuned_q.copy()
 
-    def _tuned_values(self, params: Any) -> dict[str, float]:
-        """The tuned parameters' values in an estimator's parameter record."""
+    def _tuned_values(self, params: Any, gains: dict[str, Any] | None = None) -> dict[str, float]:
+        """The tuned parameters' values in an estimator's parameter record (``gains``: its
+        ``_biso_gains_of`` when already at hand)."""
         values = {}
-        gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
+        if gains is None:
+            gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
         for name in self.tuning:
             if name in gains:
                 value = gains[name]
@@ -207,8 +209,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
         """The physical parameter values a normalised action stands for."""
         a = np.asarray(action, dtype=np.float64)
         out = {}
-        for (name, (low, high, scale)), x in zip(self.tuning.items(), a):
-            u = 0.5 * (float(x) + 1.0)
+        for (name, (low, high, scale)), x in zip(self.tuning.items(), a.tolist()):
+            u = 0.5 * (x + 1.0)
             out[name] = low * (high / low) ** u if scale == "log" else low + u * (high - low)
         return out
 
@@ -268,9 +270,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
         params = self._sim.estimators["tuned"].params
         if params is not self._in_force[0]:  # (steps that keep the gains reuse the values)
-            values = self._tuned_values(params)
+            gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
+            values = self._tuned_values(params, gains)
             if CROSS_LINK_RATIO in self.tuning:
-                gains = _biso_gains_of(params)
                 values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
             self._in_force = (params, values)
         return dict(self._in_force[1])
