@@ -188,7 +188,7 @@ class DrivingEnv(CosimEnv, EzPickle):
             self._advance(_HOLD)
         vehicle.observe_route()
         info.update(self._state_info())
-        return self._observation(), info
+        return self._observation(info["true_pose"]), info
 
     def step(self, action: Any):
         self._require_running()
@@ -214,7 +214,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         terminated = info["rolled_over"] or info["off_route"] or info["finished"]
         truncated = self._truncated and not terminated
         self._end_if(terminated, truncated)
-        return self._observation(), reward, terminated, truncated, info
+        return self._observation(info["true_pose"]), reward, terminated, truncated, info
 
     # ------------------------------------------------------------------ navigation
     def _rear_axle_xy(self) -> tuple[float, float]:
@@ -252,14 +252,13 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _state_info(self) -> dict[str, Any]:
-        """The step's info; it also keeps the true pose for the observation of the same step."""
         vehicle = self._sim.vehicle
         state = vehicle.driver.state
         newest = self._newest
         q_true = newest.q_wb[0]
         _, x, y, _ = q_true.tolist()
         tilt = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
-        self._true_pose_now = true_pose = self._true_pose()
+        true_pose = self._true_pose()
         s_m, cross_track_m = state.s_m, state.cross_track_m
         pose = self._pose
         return {
@@ -277,10 +276,9 @@ class DrivingEnv(CosimEnv, EzPickle):
             "finished": s_m >= self._sim.route.path.length_m - _END_TOLERANCE_M,
         }
 
-    def _observation(self) -> np.ndarray:
-        """The observation after ``_state_info`` of the same step (whose true pose it uses)."""
+    def _observation(self, true_pose: np.ndarray) -> np.ndarray:
         vehicle = self._sim.vehicle
-        pose = self._pose if self.pose_source == "estimate" else np.array(self._true_pose_now)
+        pose = self._pose if self.pose_source == "estimate" else true_pose
         wheels = self._newest.wheel_rates[0] * vehicle.index.wheel_radius_m
         steering = vehicle.data.sensordata[vehicle.index.steering_angle]
         return np.concatenate([*self._sensor_parts(), self._q_est, wheels, steering, pose,

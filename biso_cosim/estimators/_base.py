@@ -428,7 +428,8 @@ class Estimator:
 
     @functools.cached_property
     def _absent_inputs(self) -> dict[str, np.ndarray]:
-        """What the kernel gets for each optional input not given (shared: kernels only read it)."""
+        """What the kernel gets for each optional input not given (shared between calls:
+        kernels only read it)."""
         return {name: INPUTS[name][1]() for name in self.inputs if name in INPUTS}
 
     def _extra_inputs(self, inputs: dict[str, Any], k: int) -> dict[str, np.ndarray]:
@@ -440,9 +441,8 @@ class Estimator:
         out = {}
         for name in self.inputs:
             if name in INPUTS:
-                check, empty = INPUTS[name]
                 value = inputs.get(name)
-                out[name] = empty() if value is None else check(name, value, k)
+                out[name] = self._absent_inputs[name] if value is None else INPUTS[name][0](name, value, k)
         return out
 
     def __repr__(self) -> str:

@@ -372,8 +372,9 @@ def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, or
     * flags_out: int32 (K,).
 
     Returns (status, k): status -1 on success, the index of the first non-finite input row,
-    or -2 when the outputs hold fewer than the k rows due (in both cases nothing has changed). The outputs are the caller's because arrays made here
-    cost about a microsecond each to hand back to Python.
+    or -2 when the outputs hold fewer than the k rows due (in both cases nothing has
+    changed). The outputs are the caller's because arrays made here cost about a
+    microsecond each to hand back to Python.
     """
     cp = cp_arr[0]
     cs = cs_arr[0]

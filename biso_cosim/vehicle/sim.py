@@ -127,7 +127,7 @@ class VehicleSim:
         self._models, self._datas, self._dt_s = [self.model], [self.data], float(self.model.opt.timestep)
         self._qacc_warmstart, self._ctrl, self._sensordata = self.data.qacc_warmstart, self.data.ctrl, self.data.sensordata
         ix = self.index
-        self._steer_id, self._drive_id, self._brake_ids = int(ix.steer), int(ix.drive), ix.brakes.tolist()
+        self._brake_ids = ix.brakes.tolist()
         self._actuators = np.array([ix.steer, ix.drive, *ix.brakes], dtype=np.int64)
         self._sensor_layout = np.array([ix.quat.start, ix.rear_axle_pos.start, ix.rear_axle_vel_b.start,
                                         ix.wheel_rates.start, ix.wheel_rates.stop - ix.wheel_rates.start], dtype=np.int64)
@@ -172,9 +172,9 @@ class VehicleSim:
 
     # ------------------------------------------------------------------ stepping
     def apply(self, command: DriverCommand) -> None:
-        ctrl = self._ctrl
-        ctrl[self._steer_id] = command.steer_rad
-        ctrl[self._drive_id] = command.drive
+        ctrl, ix = self._ctrl, self.index
+        ctrl[ix.steer] = command.steer_rad
+        ctrl[ix.drive] = command.drive
         for i in self._brake_ids:  # scalar stores: cheaper than an index-array store every period
             ctrl[i] = command.brake
 
