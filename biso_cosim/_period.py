@@ -10,7 +10,7 @@ import numpy as np
 from biso_cosim._numba import jit
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
-from biso_cosim.vehicle._kernels import _interpolate_rows, _pack_rows
+from biso_cosim.vehicle._kernels import HISTORY_READ, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
 __all__ = ["_sense_period", "_sensor_inputs"]
 
@@ -29,20 +29,29 @@ def _sensor_inputs(packed, field_w, omega_b, force_b, mag_b):
 
 
 @jit
-def _sense_period(rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs, chs, temp_default, order, nsub,
-                  t_shift_s, quat_col, packed, floats, words, status_bytes, flags, at):
+def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs,
+                  chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats, words, status_bytes, flags, at,
+                  wheel_radius_m, odometry):
     """A control period's sensing in one call, the steps ``CoSimulation._sense`` takes one
-    Python call each: the truth rows packed from MuJoCo's sensordata ``rows``
-    (``VehicleSim._truth``), the MPU-9250's inputs (``_sensor_inputs``), the chip itself
+    Python call each: MuJoCo's sensordata ``rows``, read first from its sensor ``history``
+    when that is not empty (``VehicleSim._step_period``: ``_history_rows`` with ``layout``,
+    ``t_start``, ``warnings``), the truth rows packed from them (``VehicleSim._truth``),
+    the MPU-9250's inputs (``_sensor_inputs``), the chip itself
     (``sensors._kernels._simulate``, writing ``floats``, ``words``, ``status_bytes``,
-    ``flags``), its time stamps shifted by ``t_shift_s``, and the truth at them
-    (``Truth.at``, from the row ``before`` the period when given) into ``at``.
+    ``flags``), its time stamps shifted by ``t_shift_s``, the truth at them (``Truth.at``,
+    from the row ``before`` the period when given) into ``at``, and, when ``odometry`` is
+    not empty, the wheel odometry at them into it (``CoSimulation._odometry_mps``).
 
     Returns (status, k): -1 and the number of samples on success; the chip's status when it
     refused the rows (a row index, or -2), or -3 for a position that is not finite (then
     nothing has changed but the packed truth); -4 when the samples' time stamps leave the
-    rows (the sensor and the physics out of step).
+    rows (the sensor and the physics out of step); -5 and ``_history_rows``' outcome when
+    the history does not hold the rows (nothing has changed: ``VehicleSim._restep``).
     """
+    if history.shape[0]:
+        outcome = _history_rows(history, layout, rows.shape[0], t_start, warnings, rows)
+        if outcome != HISTORY_READ:
+            return -5, outcome
     _pack_rows(rows, gather, first_step, rate_hz, packed)
     n = packed.shape[0]
     inputs = np.empty((3, n, 3))
@@ -61,4 +70,6 @@ def _sense_period(rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs
         return -4, k
     if k:
         _interpolate_rows(before, packed, t0_s, rate_hz, t_s, quat_col, at[:k])
+        if odometry.shape[0]:
+            _wheel_odometry(at[:k], wheel_radius_m, odometry[:k])
     return -1, k

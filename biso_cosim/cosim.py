@@ -30,7 +30,8 @@ from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, er
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
 from biso_cosim.vehicle.driver import DriverCommand
-from biso_cosim.vehicle.sim import _NO_ROWS, Truth, VehicleSim
+from biso_cosim.vehicle._kernels import _wheel_odometry
+from biso_cosim.vehicle.sim import _NO_ROWS, PHYSICS_STATE, Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
            "NAVIGATOR_PRESETS"]
@@ -59,6 +60,8 @@ _WINDOW_S = 1.0
 # Every log (a run from reset, or a history begun by set_state) gets its own number, so that
 # set_state cuts back only the log that a state belongs to.
 _LOG_GENERATIONS = itertools.count(1)
+# the period kernel's history argument when the rows are given (``_sense_period``)
+_NO_HISTORY = np.empty(0)
 
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
@@ -215,6 +218,10 @@ class CoSimulation:
         if not isinstance(keep_log, bool):
             raise TypeError(f"keep_log must be True or False, got {keep_log!r}")
         self.keep_log = keep_log
+        # {} from a caller that is done with each step's samples before the next step (the
+        # environments): without a log the sensor then writes every period's samples into the
+        # same arrays (n input rows -> (outputs, {k: ImuSamples of their first k rows})).
+        self._sensor_buffers: dict[int, tuple] | None = None
         self.duration_s = float(duration_s)
         self.seed = int(seed)
         self.gyro_calibration_s = float(gyro_calibration_s)
@@ -236,6 +243,7 @@ class CoSimulation:
             params.setdefault("declination_rad", self.earth.declination_rad)
             est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
             self.estimators[spec.key] = est
+        self._wants_odometry = any("speed_mps" in getattr(e, "inputs", ()) for e in self.estimators.values())
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
         self.gnss_receiver = self._make_receiver(gnss, gnss_rate_hz, physics_rate_hz)
         # what a state must share with this co-simulation to be restored into it
@@ -263,8 +271,9 @@ class CoSimulation:
         (driven wheels spin under throttle): the mean spin rate of the front wheels times the
         wheel radius, times the cosine of the steering angle, is the speed of the rear axle's
         centre in the bicycle model (negative in reverse)."""
-        front = 0.5 * (truth.wheel_rates[:, 0] + truth.wheel_rates[:, 1])
-        return front * self.vehicle.index.wheel_radius_m * np.cos(truth.steer_rad)
+        out = np.empty(len(truth))
+        _wheel_odometry(truth.packed, self.vehicle.index.wheel_radius_m, out)
+        return out
 
     # ------------------------------------------------------------------ running
     def reset(self) -> None:
@@ -384,9 +393,8 @@ class CoSimulation:
             raise ValueError("get_state: a user's estimator is in the loop, and its state is unknown to the "
                              "co-simulation")
         v = self.vehicle
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        physics = np.empty(mujoco.mj_stateSize(v.model, spec))
-        mujoco.mj_getState(v.model, v.data, physics, spec)
+        physics = np.empty(mujoco.mj_stateSize(v.model, PHYSICS_STATE))
+        mujoco.mj_getState(v.model, v.data, physics, PHYSICS_STATE)
         return CoSimState(
             identity=self._identity, log_origin_chunk=self._log_origin_chunk, log_generation=self._log_generation,
             physics=physics, sensordata=v.data.sensordata.copy(), steps_done=v.steps_done,
@@ -412,11 +420,11 @@ class CoSimulation:
             raise ValueError("set_state: the state is from a co-simulation with another set-up (route, seed, "
                              "sensor, estimators, navigators, GNSS or rates); nothing changed")
         v = self.vehicle
-        spec = mujoco.mjtState.mjSTATE_INTEGRATION
-        mujoco.mj_setState(v.model, v.data, state.physics, spec)
+        mujoco.mj_setState(v.model, v.data, state.physics, PHYSICS_STATE)
         # the driver reads the sensor data of the last step, which belongs to that step's start
         # (DESIGN.md §3): restore it as it was rather than recompute it for the current state
         v.data.sensordata[:] = state.sensordata
+        v._restart_history()
         v.steps_done = state.steps_done
         v.driver.state = copy.deepcopy(state.driver)
         self.imu.set_state(copy.deepcopy(state.imu))
@@ -470,58 +478,101 @@ class CoSimulation:
         of the period, the truth at their time stamps, and each estimator's output.
 
         With ``command`` the car is driven by it for this period instead of by the scripted
-        driver (for agents that drive); the driver still tracks progress along the route.
+        driver (for agents that drive); the driver still tracks progress along the route, at
+        the end of the period: ``vehicle.driver.state`` is then where the step left the car
+        (scripted periods record it at their start, where the driver's command is made).
         """
         if self.magnetic.disturbances:
             return self._sense(self._drive(command))
-        return self._sense_period(*self._drive_rows(command))
+        self._command(command)
+        stepped = self.vehicle._step_period()  # the rows stay in MuJoCo's sensor history
+        if stepped is None:  # (a period longer than the history)
+            return self._sense_period(*self._drive_rows(command, commanded=True))
+        self._period_done(command)
+        t_start, first = stepped
+        return self._sense_period(None, first, t_start)
 
     def _drive(self, command: DriverCommand | None = None) -> Truth:
         """Driver (or the given command) and physics for one control period."""
         return self.vehicle._truth(*self._drive_rows(command))
 
-    def _drive_rows(self, command: DriverCommand | None = None) -> tuple[np.ndarray, int]:
-        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``)."""
+    def _drive_rows(self, command: DriverCommand | None = None, commanded: bool = False) -> tuple[np.ndarray, int]:
+        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``);
+        ``commanded``: ``_command`` has been called already."""
+        if not commanded:
+            self._command(command)
+        rows = self.vehicle._step_rows()
+        self._period_done(command)
+        return rows
+
+    def _command(self, command: DriverCommand | None) -> None:
+        """The controls of the next period: the scripted driver's, or ``command``."""
         vehicle = self.vehicle
         if command is None:
             vehicle._drive()  # the scripted driver (drive() without its command record)
         else:
             _check_command(command, vehicle.parameters["max_steer_rad"])
-            vehicle.observe_route()
             vehicle.apply(command)
-        rows = vehicle._step_rows()
+
+    def _period_done(self, command: DriverCommand | None) -> None:
+        """After a period's physics: an agent's progress along the route, the log, the count."""
+        vehicle = self.vehicle
+        if command is not None:
+            vehicle.observe_route()
         if self.keep_log:
             self._log["cross_track_m"].append(vehicle.driver.state.cross_track_m)
             self._log["progress_m"].append(vehicle.driver.state.s_m)
         self._chunks_done += 1
         if self._finished_chunk is None and vehicle.driver.finished:
             self._finished_chunk = self._chunks_done
-        return rows
 
-    def _sense_period(self, rows: np.ndarray, first_step: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+    def _sense_period(self, rows: np.ndarray | None, first_step: int, t_start: float = 0.0
+                      ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """``_sense`` of one period's MuJoCo sensor rows, with the truth packing, the sensor's
-        inputs, the sensor and the truth at its samples in one kernel call (``_period``): the
-        same numbers as ``_sense(vehicle._truth(rows, first_step))``, tested; the Earth's field
-        alone (no local disturbances)."""
+        inputs, the sensor, the truth at its samples and the wheel odometry there in one
+        kernel call (``_period``): the same numbers as ``_sense(vehicle._truth(rows,
+        first_step))``, tested; the Earth's field alone (no local disturbances). ``rows``
+        None: the rows of ``VehicleSim._step_period``, begun at ``t_start``, read from
+        MuJoCo's sensor history by the kernel."""
         vehicle, imu = self.vehicle, self.imu
         orders, subs = self._increment_orders, self._subintervals
-        packed = np.empty((rows.shape[0], Truth.WIDTH))
-        out = imu._outputs(rows.shape[0], orders, subs)
-        at = np.empty((out[3].shape[0], Truth.WIDTH))
+        history = (vehicle._history, vehicle._history_layout, t_start, vehicle._warnings, vehicle._rows)
+        if rows is not None:
+            history = (_NO_HISTORY, vehicle._history_layout, 0.0, vehicle._warnings, rows)
+        n = history[4].shape[0]
+        packed = np.empty((n, Truth.WIDTH))
+        views = None
+        if self._sensor_buffers is None or self.keep_log:
+            out = imu._outputs(n, orders, subs)
+        else:
+            if n not in self._sensor_buffers:
+                self._sensor_buffers[n] = (imu._outputs(n, orders, subs), {})
+            out, views = self._sensor_buffers[n]
+        bound = out[3].shape[0]
+        at = np.empty((bound, Truth.WIDTH))
+        odometry = np.empty(bound if self._wants_odometry else 0)
         before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
-        cp, ch, cs, chs, temp_default = imu._kernel_state()
-        status, k = _sense_period(rows, vehicle._gather, first_step, vehicle.physics_rate_hz,
-                                  self.magnetic.earth.field_enu_ut, before, cp, ch, cs, chs, temp_default, orders, subs,
-                                  self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at)
+        status, k = _sense_period(*history, vehicle._gather, first_step, vehicle.physics_rate_hz,
+                                  self.magnetic.earth.field_enu_ut, before, *imu._kernel_state(), orders, subs,
+                                  self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
+                                  vehicle.index.wheel_radius_m, odometry)
+        if status == -5:  # the history did not hold the rows (nothing changed): the period stepped again
+            return self._sense_period(vehicle._restep(vehicle._rows, k), first_step)
         truth = Truth(packed)
         if status >= 0 or status == -3:  # inputs refused, nothing changed: the errors of the general path
             return self._sense(truth)
-        samples = imu._samples(status, k, out, orders, subs)
+        if views is None or status != -1:
+            samples = imu._samples(status, k, out, orders, subs)  # (raises on status -2)
+        elif k in views:
+            samples = views[k]
+        else:
+            samples = views[k] = imu._samples(status, k, out, orders, subs)
         if status == -4:
             self._truth_at(samples.t_s, truth)  # raises: the sensor and the physics are out of step
         self._last_truth_row = Truth(packed[-1:])
-        self._remove_gyro_offset(samples)
-        return self._estimate(truth, samples, Truth(at[:k]))
+        if self._has_gyro_offset:
+            self._remove_gyro_offset(samples)
+        return self._estimate(truth, samples, Truth(at[:k]), odometry[:k])
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
@@ -539,9 +590,10 @@ class CoSimulation:
         self._remove_gyro_offset(samples)
         return self._estimate(truth, samples, self._truth_at(samples.t_s, truth))
 
-    def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth
+    def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None
                   ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """GNSS, navigators and estimators over the sensor's samples (and the log)."""
+        """GNSS, navigators and estimators over the sensor's samples (and the log);
+        ``odometry``: the wheel odometry at the samples when already at hand."""
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
@@ -555,7 +607,9 @@ class CoSimulation:
             inputs = getattr(est, "inputs", ())
             extra = {}
             if "speed_mps" in inputs:
-                extra["speed_mps"] = self._odometry_mps(at_samples)
+                if odometry is None:
+                    odometry = self._odometry_mps(at_samples)
+                extra["speed_mps"] = odometry
             if "gnss" in inputs:
                 extra["gnss"] = fixes
             if "imu_flags" in inputs:  # the sensor's saturation and overflow bits

@@ -396,7 +396,9 @@ class CosimEnv(gym.Env):
     def _build(self, route: Route, seed: int) -> CoSimulation:
         self._check_route(route)
         duration = self._episode_duration_s or self._default_duration_s(route)
-        return CoSimulation(route, duration_s=duration + self._reset_time_s(), seed=seed, **self._sim_options)
+        sim = CoSimulation(route, duration_s=duration + self._reset_time_s(), seed=seed, **self._sim_options)
+        sim._sensor_buffers = {}  # each step's samples are consumed within the step (see CoSimulation)
+        return sim
 
     def _begin_episode(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
         """Seed the episode, set up its route and sensor, and rewind the co-simulation."""

@@ -9,8 +9,11 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.frames import _qmul, _qnormalize
+from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 
-__all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_dead_reckon", "_route_ahead"]
+__all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
+           "_route_ahead",
+           "_navigate_period", "_driving_view"]
 
 
 @jit
@@ -75,6 +78,17 @@ def _mean_angle(p, q):
 
 
 @jit
+def _mean_angles_to(p1, p2, q, last1, last2):
+    """(_mean_angle(p1, q), _mean_angle(p2, q)) in one call, with the last rows of p1 and p2
+    copied into last1, last2 (k > 0 rows each)."""
+    k = p1.shape[0]
+    for j in range(4):
+        last1[j] = p1[k - 1, j]
+        last2[j] = p2[k - 1, j]
+    return _mean_angle(p1, q), _mean_angle(p2, q)
+
+
+@jit
 def _dead_reckon(q, wheel_rates, speed_scale, dt, pose):
     """Advance the 2-D pose (x, y, yaw) over k samples: each moves it by dt·v·(horizontal
     forward axis of q_wb), v = speed_scale·(front-left + front-right wheel rate); the yaw
@@ -90,6 +104,58 @@ def _dead_reckon(q, wheel_rates, speed_scale, dt, pose):
         pose[1] += dt * v * fy
     if q.shape[0]:
         pose[2] = math.atan2(fy, fx)
+
+
+@jit
+def _navigate_period(q, packed, sensordata, steer_index, half_radius_m, dt, pose, q_est):
+    """Driving-v0's navigation over one period's k samples (k > 0): ``_dead_reckon`` with the
+    rear axle's speed half_radius·cos(steering)·(fl + fr wheel rate) (wheel rates in the
+    packed truth's columns 18, 19; steering read from MuJoCo's sensordata), and the newest
+    estimate copied into q_est."""
+    speed_scale = half_radius_m * math.cos(sensordata[steer_index])
+    _dead_reckon(q, packed[:, 18:22], speed_scale, dt, pose)
+    for j in range(4):
+        q_est[j] = q[q.shape[0] - 1, j]
+
+
+@jit
+def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_index, wheel_radius_m, nav_pose,
+                  use_truth, path_x, path_y, path_s, nav_hint, offsets, values):
+    """Driving-v0's observation and the true state of its ``info``, from the newest truth row
+    ``newest`` (packed, 23 columns) and MuJoCo's sensordata (rear axle x, y; steering).
+
+    values (5,) = tilt of the body's up axis (rad), true rear-axle x, y (m) and yaw (rad),
+    angle between q_est and the true attitude (rad). obs = window (ravelled), gnss, q_est,
+    wheel speeds (rate × radius), steering, the pose the route ahead is placed from (nav_pose,
+    or the true pose with use_truth), the route ahead of it (``_route_ahead`` from the
+    nearest point found by ``_locate`` in Path.locate's window around nav_hint). Returns the
+    index of that nearest point (the next call's hint)."""
+    w, x, y, z = newest[7], newest[8], newest[9], newest[10]
+    values[0] = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
+    values[1] = sensordata[axle_x]
+    values[2] = sensordata[axle_x + 1]
+    values[3] = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
+    values[4] = _angle(q_est, newest[7:11])
+    pose = values[1:4] if use_truth else nav_pose
+    i = 0
+    for v in window.ravel():
+        obs[i] = v
+        i += 1
+    for j in range(gnss.shape[0]):
+        obs[i + j] = gnss[j]
+    i += gnss.shape[0]
+    for j in range(4):
+        obs[i + j] = q_est[j]
+        obs[i + 4 + j] = newest[18 + j] * wheel_radius_m
+    obs[i + 8] = sensordata[steer_index]
+    for j in range(3):
+        obs[i + 9 + j] = pose[j]
+    i += 12
+    lo = max(nav_hint - LOCATE_BACK, 0)
+    hi = min(nav_hint + LOCATE_AHEAD, path_s.shape[0] - 1)
+    nearest, s, _ = _locate(path_x, path_y, path_s, pose[0], pose[1], lo, hi)
+    _route_ahead(path_x, path_y, path_s, s, offsets, pose[0], pose[1], pose[2], obs[i:].reshape((offsets.shape[0], 2)))
+    return nearest
 
 
 @jit

@@ -12,10 +12,9 @@ from gymnasium.utils import EzPickle
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle, _dead_reckon, _route_ahead
+from biso_cosim.envs._kernels import _driving_view, _navigate_period
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
-from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["DrivingEnv"]
 
@@ -24,6 +23,7 @@ _POSE_SOURCES = ("estimate", "truth")
 _END_TOLERANCE_M = 1.0
 # The first control period after reset holds the car (the agent's first action follows it).
 _HOLD = DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)
+_NO_GNSS = np.empty(0)
 
 
 class DrivingEnv(CosimEnv, EzPickle):
@@ -163,7 +163,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         self._preview_offsets = self.preview_spacing_m * np.arange(1, self.preview_points + 1)
         self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
         self._pose = np.zeros(3)  # navigation pose: rear-axle x, y (m), yaw (rad)
-        self._nav_index = 0
+        self._nav_index = 0  # the path sample nearest to the pose the route ahead is placed from
 
     def _check_route(self, route: Route) -> None:
         if any(w.reverse for w in route.waypoints):
@@ -182,25 +182,24 @@ class DrivingEnv(CosimEnv, EzPickle):
         x, y = self._rear_axle_xy()
         self._pose[:] = (x, y, vehicle.route.start_xy_yaw[2])
         self._nav_index = 0
-        self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
+        self._q_est[:] = (1.0, 0.0, 0.0, 0.0)
         self._first_period(_HOLD)
         for _ in range(self._alignment_periods - 1):  # the rest of the alignment
             self._advance(_HOLD)
-        vehicle.observe_route()
-        info.update(self._state_info())
-        return self._observation(info["true_pose"]), info
+        state_info, observation = self._view()
+        info.update(state_info)
+        return observation, info
 
     def step(self, action: Any):
         self._require_running()
         a = self._check_action(action)
         vehicle = self._sim.vehicle
-        throttle, steering = float(a[0]), float(a[1])
-        command = DriverCommand(steer_rad=steering * vehicle.parameters["max_steer_rad"],
-                                drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
+        throttle, steering = a.tolist()
+        command = DriverCommand(steer_rad=steering * vehicle.parameters["max_steer_rad"], drive=max(throttle, 0.0),
+                                brake=max(-throttle, 0.0))
         before = vehicle.driver.state.s_m
-        self._advance(command)
-        vehicle.observe_route()  # progress and cross-track error at the end of the step
-        info = self._state_info()
+        self._advance(command)  # (the driver's progress and cross-track error: at the end of the step)
+        info, observation = self._view()
         w = self.weights
         terms = {
             "reward_progress": w["progress"] * (info["distance_m"] - before),
@@ -214,7 +213,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         terminated = info["rolled_over"] or info["off_route"] or info["finished"]
         truncated = self._truncated and not terminated
         self._end_if(terminated, truncated)
-        return self._observation(info["true_pose"]), reward, terminated, truncated, info
+        return observation, reward, terminated, truncated, info
 
     # ------------------------------------------------------------------ navigation
     def _rear_axle_xy(self) -> tuple[float, float]:
@@ -230,59 +229,44 @@ class DrivingEnv(CosimEnv, EzPickle):
         rear wheels slip under torque): in the bicycle model the rear axle moves at the front
         wheels' speed times cos(steering angle)."""
         q = outputs["estimator"].q_wb
-        if not len(q):
-            return
-        self._q_est = q[-1].copy()
-        vehicle = self._sim.vehicle
-        cos_steer = math.cos(float(vehicle.data.sensordata[vehicle.index.steering_angle][0]))
-        _dead_reckon(q, truth.wheel_rates, 0.5 * vehicle.index.wheel_radius_m * cos_steer, 1.0 / self.imu_rate_hz,
-                     self._pose)
-
-    def _true_pose(self) -> tuple[float, float, float]:
-        x, y = self._rear_axle_xy()
-        w, qx, qy, qz = self._newest.packed[0, Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].tolist()
-        return x, y, math.atan2(2.0 * (qx * qy + w * qz), 1.0 - 2.0 * (qy * qy + qz * qz))
-
-    def _route_ahead(self, x: float, y: float, yaw: float) -> np.ndarray:
-        path = self._sim.route.path
-        self._nav_index, s, _ = path.locate(x, y, self._nav_index)
-        out = np.empty((self.preview_points, 2))
-        _route_ahead(path.x_m, path.y_m, path.s_m, s, self._preview_offsets, x, y, yaw, out)
-        return out
+        if len(q):
+            vehicle = self._sim.vehicle
+            _navigate_period(q, truth.packed, vehicle._sensordata, vehicle.index.steering_angle.start,
+                             0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose, self._q_est)
 
     # ------------------------------------------------------------------ parts
-    def _state_info(self) -> dict[str, Any]:
+    def _view(self) -> tuple[dict[str, Any], np.ndarray]:
+        """The true state's part of ``info``, and the observation: one kernel call
+        (``_driving_view``) for both, from the newest truth row and MuJoCo's sensordata."""
         vehicle = self._sim.vehicle
+        path = self._sim.route.path
+        observation = np.empty(self.observation_space.shape[0])
+        values = np.empty(5)
+        gnss = self._gnss.values if self._gnss is not None else _NO_GNSS
+        self._nav_index = _driving_view(
+            observation, self._window.values, gnss, self._q_est, self._newest.packed[0], vehicle._sensordata,
+            vehicle._axle_x, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose, self.pose_source == "truth",
+            path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets, values)
+        tilt, x, y, yaw, attitude_error = values.tolist()
         state = vehicle.driver.state
-        newest = self._newest
-        q_true = newest.q_wb[0]
-        _, x, y, _ = q_true.tolist()
-        tilt = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
-        true_pose = self._true_pose()
         s_m, cross_track_m = state.s_m, state.cross_track_m
         pose = self._pose
-        return {
+        nav_x, nav_y, nav_yaw = pose.tolist()
+        info = {
             "distance_m": s_m,
             "cross_track_m": cross_track_m,
-            "speed_mps": float(newest.speed_mps[0]),
+            "speed_mps": float(self._newest.speed_mps[0]),
             "tilt_rad": tilt,
-            "attitude_error_rad": _angle(self._q_est, q_true),
+            "attitude_error_rad": attitude_error,
             "nav_pose": pose.copy(),
-            "true_pose": np.array(true_pose),
-            "pose_error_m": math.hypot(pose[0] - true_pose[0], pose[1] - true_pose[1]),
-            "heading_error_rad": math.remainder(pose[2] - true_pose[2], 2.0 * math.pi),
+            "true_pose": values[1:4].copy(),
+            "pose_error_m": math.hypot(nav_x - x, nav_y - y),
+            "heading_error_rad": math.remainder(nav_yaw - yaw, 2.0 * math.pi),
             "rolled_over": tilt > self.rollover_tilt_rad,
             "off_route": abs(cross_track_m) > self.max_cross_track_m,
-            "finished": s_m >= self._sim.route.path.length_m - _END_TOLERANCE_M,
+            "finished": s_m >= path.length_m - _END_TOLERANCE_M,
         }
-
-    def _observation(self, true_pose: np.ndarray) -> np.ndarray:
-        vehicle = self._sim.vehicle
-        pose = self._pose if self.pose_source == "estimate" else true_pose
-        wheels = self._newest.wheel_rates[0] * vehicle.index.wheel_radius_m
-        steering = vehicle.data.sensordata[vehicle.index.steering_angle]
-        return np.concatenate([*self._sensor_parts(), self._q_est, wheels, steering, pose,
-                               self._route_ahead(*pose.tolist()).ravel()])
+        return info, observation
 
 
 finish_docstring(DrivingEnv)

@@ -388,13 +388,17 @@ def _assert_same_samples(a, b):
     {"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
      "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}), "gnss_kalman")},
 ])
-def test_period_kernel_equals_the_general_path(options):
+@pytest.mark.parametrize("reuse", [False, True])
+def test_period_kernel_equals_the_general_path(options, reuse):
     """step() senses a period by one kernel (truth packing, sensor inputs, MPU-9250, truth at
-    the samples): the same numbers, bit for bit, as the general path of run()'s blocks."""
+    the samples): the same numbers, bit for bit, as the general path of run()'s blocks; also
+    when, as for the environments, every period's samples are written into the same arrays."""
     opts = dict(options)
     estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
     specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label="biso_coning") for e in estimators]
-    fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, **opts)
+    fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, keep_log=not reuse, **opts)
+    if reuse:
+        fused._sensor_buffers = {}
     general = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, **opts)
     while not fused.done:
         samples, truth, outputs = fused.step()
@@ -403,7 +407,41 @@ def test_period_kernel_equals_the_general_path(options):
         assert np.array_equal(truth.packed, want_truth.packed)
         for key, out in outputs.items():
             assert np.array_equal(out.q_wb, want_outputs[key].q_wb) and np.array_equal(out.flags, want_outputs[key].flags)
-    assert np.array_equal(fused.result().truth.packed, general.result().truth.packed)
+    if reuse:
+        assert samples.gyro_b.base is not None and len(fused._sensor_buffers) == 1  # views of the one set of arrays
+    else:
+        assert np.array_equal(fused.result().truth.packed, general.result().truth.packed)
+
+
+@pytest.mark.parametrize("case", ["warning", "long_period"])
+def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case):
+    """step() leaves a period's rows in MuJoCo's sensor history for the period kernel; after
+    a MuJoCo warning (here a diverged state that MuJoCo resets) the period is stepped again,
+    and a period longer than the history is stepped through ``_step_rows``: either way the
+    numbers of the general path."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
+    rate = 4.0 if case == "long_period" else 50.0
+    fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
+    general = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
+    for period in range(6):
+        if case == "warning" and period == 3:
+            fused.vehicle.data.qvel[0] = general.vehicle.data.qvel[0] = 1e11
+        samples, truth, outputs = fused.step()
+        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        _assert_same_samples(samples, want_samples)
+        assert np.array_equal(truth.packed, want_truth.packed)
+        assert np.array_equal(outputs["biso_plus"].q_wb, want_outputs["biso_plus"].q_wb)
+    assert fused.vehicle.periods_with_warnings == general.vehicle.periods_with_warnings == (case == "warning")
+
+
+def test_wheel_odometry_is_the_front_wheels_times_cos_steering():
+    from biso_cosim.vehicle._kernels import _wheel_odometry
+
+    rows = np.random.default_rng(3).normal(size=(50, 23))
+    expected = 0.5 * (rows[:, 18] + rows[:, 19]) * 0.3 * np.cos(rows[:, 22])
+    out = np.empty(50)
+    _wheel_odometry(rows, 0.3, out)
+    np.testing.assert_allclose(out, expected, rtol=1e-15, atol=0)  # (NumPy's cos: ≤ 1 ulp)
 
 
 @pytest.mark.parametrize(("column", "message"), [(1, "omega_b"), (12, "p_w must be finite")])
@@ -422,6 +460,7 @@ def test_period_kernel_refuses_bad_rows_as_the_general_path_does(monkeypatch, co
 
     sim.step()
     before = sim.imu.get_state()
+    monkeypatch.setattr(vehicle, "_step_period", lambda: None)  # the rows through _step_rows, poisoned
     monkeypatch.setattr(vehicle, "_step_rows", poisoned)
     with pytest.raises(ValueError, match=message):
         sim.step()

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from biso_cosim.envs._kernels import _angle, _angles_to, _dead_reckon, _mean_angle, _push_window, _route_ahead
+from biso_cosim.envs._kernels import (_angle, _angles_to, _dead_reckon, _driving_view, _mean_angle, _mean_angles_to,
+                                      _navigate_period, _push_window, _route_ahead)
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
 
@@ -49,6 +50,10 @@ def test_angle_is_quat_angle_between_bit_for_bit():
         total += value
     assert _mean_angle(p[:7], q[:7]) == total / 7
     assert _angles_to(p[0], p[1], q[2]) == (_angle(p[0], q[2]), _angle(p[1], q[2]))
+    last1, last2 = np.empty(4), np.empty(4)
+    assert _mean_angles_to(p[:7], q[7:14], q[:7], last1, last2) == (_mean_angle(p[:7], q[:7]),
+                                                                    _mean_angle(q[7:14], q[:7]))
+    assert last1.tolist() == p[6].tolist() and last2.tolist() == q[13].tolist()
 
 
 def test_dead_reckon_matches_a_plain_loop():
@@ -68,6 +73,50 @@ def test_dead_reckon_matches_a_plain_loop():
     assert pose[0] == x and pose[1] == y and pose[2] == math.atan2(fy, fx)
     _dead_reckon(q[:0], wheels[:0], 0.158, 0.005, pose)  # no samples: nothing moves
     assert pose[0] == x and pose[2] == math.atan2(fy, fx)
+
+
+def test_navigate_period_is_dead_reckoning_with_the_rear_axle_speed():
+    rng = np.random.default_rng(5)
+    q = rng.normal(size=(4, 4))
+    packed = rng.normal(size=(20, 23))
+    sensordata = rng.normal(size=30)
+    pose, expected = np.array([3.0, -1.0, 0.2]), np.array([3.0, -1.0, 0.2])
+    q_est = np.empty(4)
+    _navigate_period(q, packed, sensordata, 29, 0.5 * 0.316, 0.005, pose, q_est)
+    _dead_reckon(q, packed[:, 18:22], 0.5 * 0.316 * math.cos(sensordata[29]), 0.005, expected)
+    assert pose.tolist() == expected.tolist() and q_est.tolist() == q[-1].tolist()
+
+
+@pytest.mark.parametrize("use_truth", [False, True])
+def test_driving_view_matches_the_plain_parts(use_truth):
+    """Driving-v0's observation and true state in one kernel: the expressions of the plain
+    parts (window, GNSS, estimate, wheel speeds, steering, pose, route ahead from
+    ``Path.locate``), bit for bit."""
+    path = random_route(9).path
+    rng = np.random.default_rng(6)
+    window, gnss = rng.normal(size=(4, 11)), rng.normal(size=9)
+    q_est = rng.normal(size=4)
+    newest = rng.normal(size=23)
+    newest[7:11] /= np.linalg.norm(newest[7:11])
+    i = 140
+    sensordata = rng.normal(size=30)
+    sensordata[3:5] = path.x_m[i] + 0.7, path.y_m[i] - 0.4  # the rear axle, near the path
+    nav_pose = np.array([path.x_m[i] - 0.3, path.y_m[i] + 0.2, 0.4])
+    offsets = 2.0 * np.arange(1, 11)
+    obs, values = np.empty(11 * 4 + 9 + 12 + 20), np.empty(5)
+    nearest = _driving_view(obs, window, gnss, q_est, newest, sensordata, 3, 29, 0.316, nav_pose, use_truth,
+                            path.x_m, path.y_m, path.s_m, i - 3, offsets, values)
+    w, x, y, z = newest[7:11]
+    true_pose = [sensordata[3], sensordata[4], math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))]
+    assert values.tolist() == [math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0)), *true_pose,
+                               _angle(q_est, newest[7:11])]
+    pose = true_pose if use_truth else nav_pose.tolist()
+    index, s, _ = path.locate(pose[0], pose[1], i - 3)
+    ahead = np.empty((10, 2))
+    _route_ahead(path.x_m, path.y_m, path.s_m, s, offsets, *pose, ahead)
+    expected = np.concatenate([window.ravel(), gnss, q_est, newest[18:22] * 0.316, sensordata[29:30], pose,
+                               ahead.ravel()])
+    assert nearest == index and obs.tolist() == expected.tolist()
 
 
 def test_route_ahead_matches_index_at():

@@ -117,6 +117,28 @@ def test_output_timing_and_chunk_ownership(smplrt_div):
     np.testing.assert_allclose(s.accel_b, force[idx], atol=1e-12)
 
 
+@pytest.mark.parametrize("registers", [{}, {"mag_mode": 0x0}, {"mag_mode": 0x1}])
+def test_the_kernel_writes_every_output_entry(monkeypatch, registers):
+    """The co-simulation reuses the sensor's output arrays between periods: whatever they
+    held before (here garbage), the samples and raw registers are the same, with the
+    magnetometer measuring, powered down, or in single-measurement mode."""
+    arrays = motion(400)[:3]
+    expected = MPU9250("mpu9250", seed=4, registers=registers).simulate(*arrays, increments=2, subintervals=2)
+    fresh = MPU9250._outputs
+
+    def garbage(self, n, increments, subintervals):
+        out = fresh(self, n, increments, subintervals)
+        for a in out:
+            a.view(np.uint8)[...] = 0x5A
+        return out
+
+    monkeypatch.setattr(MPU9250, "_outputs", garbage)
+    got = MPU9250("mpu9250", seed=4, registers=registers).simulate(*arrays, increments=2, subintervals=2)
+    assert_same(got, expected)
+    np.testing.assert_array_equal(got.raw.words, expected.raw.words)
+    np.testing.assert_array_equal(got.raw.status, expected.raw.status)
+
+
 def test_output_bound_holds_every_output_a_call_completes():
     """The caller allocates the kernel's outputs by output_bound; it must never be short
     (``_n_outputs`` written plainly), and it wastes at most the ticks of one input row."""

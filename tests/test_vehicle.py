@@ -177,13 +177,15 @@ def test_chunked_stepping_is_deterministic_and_time_stamped():
     np.testing.assert_array_equal(drive(a, 3.0).specific_force_b, ta.specific_force_b)
 
 
-def test_a_control_period_in_the_rollout_equals_mj_step_calls_bit_for_bit():
-    """``step`` runs a period in MuJoCo's C rollout: the same sensor rows and the same final
-    state as a Python loop of ``mj_step`` with the controls held, for whole and odd-sized periods."""
+def test_a_control_period_from_the_sensor_history_equals_mj_step_calls_bit_for_bit():
+    """``step`` runs a period as mj_step(m, d, n) and reads the rows from the sensors'
+    history: the same sensor rows and the same final state as a Python loop of ``mj_step``
+    with the controls held, for whole and odd-sized periods, and periods longer than the
+    history (stepped in parts)."""
     route = circle_route(20.0, 6.0, laps=1)
     a, b = VehicleSim(route), VehicleSim(route)
     size = mujoco.mj_stateSize(a.model, mujoco.mjtState.mjSTATE_INTEGRATION)
-    for n in (None, None, 7, 20, 1, 33):
+    for n in (None, None, 7, 20, 1, 33, 250):
         a.drive()
         b.drive()
         truth = a.step(n)
@@ -200,9 +202,33 @@ def test_a_control_period_in_the_rollout_equals_mj_step_calls_bit_for_bit():
         np.testing.assert_array_equal(a.data.sensordata, b.data.sensordata)
 
 
+def test_a_clock_set_back_does_not_confuse_the_history():
+    """MuJoCo advances a sensor's history ring only past its newest time stamp: after the
+    clock is set back (here by hand, without ``_restart_history``) the rows of the next
+    period are still those of plain mj_step calls (the period is stepped again), and the
+    rings start afresh for the periods after it."""
+    route = circle_route(20.0, 6.0, laps=1)
+    a, b = VehicleSim(route), VehicleSim(route)
+    for sim in (a, b):
+        drive(sim, 1.0)
+        sim.data.time = 0.5
+    for period in range(3):
+        a.drive()
+        b.drive()
+        truth = a.step()
+        rows = []
+        for _ in range(b.steps_per_control):
+            mujoco.mj_step(b.model, b.data)
+            rows.append(b.data.sensordata.copy())
+        np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), b.steps_done).packed)
+        b.steps_done += len(rows)
+    assert a.periods_with_warnings == 0  # (no warning: the clock)
+
+
 def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monkeypatch):
-    """MuJoCo's rollout stops at a warning; the period is then stepped again one mj_step at a
-    time, so the rows are those of plain mj_step calls (here MuJoCo resets a diverged state)."""
+    """A MuJoCo warning may come with a reset of the data, the sensor history with it: the
+    period is then stepped again one mj_step at a time, so the rows are those of plain
+    mj_step calls (here MuJoCo resets a diverged state)."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     route = circle_route(20.0, 6.0, laps=1)
     a, b = VehicleSim(route), VehicleSim(route)

@@ -6,6 +6,9 @@ import math
 
 from biso_cosim._numba import jit
 
+# The window ``Path.locate`` searches by default, in samples behind and ahead of its hint.
+LOCATE_BACK, LOCATE_AHEAD = 8, 80
+
 
 @jit
 def _locate(xs, ys, ss, x, y, lo, hi):

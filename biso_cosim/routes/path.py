@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from biso_cosim.routes._kernels import _locate
+from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 
 __all__ = ["Path", "densify", "speed_profile"]
 
@@ -41,7 +41,7 @@ class Path:
     def __len__(self) -> int:
         return self.x_m.shape[0]
 
-    def locate(self, x: float, y: float, hint: int, back: int = 8, ahead: int = 80,
+    def locate(self, x: float, y: float, hint: int, back: int = LOCATE_BACK, ahead: int = LOCATE_AHEAD,
                floor: int = 0) -> tuple[int, float, float]:
         """Nearest point of the path to (x, y), searched in a window around index ``hint``
         and never before index ``floor``.

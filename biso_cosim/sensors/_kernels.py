@@ -362,7 +362,7 @@ def _simulate(cp_arr, ch, cs_arr, chs, omega, force, mag, temp, temp_default, or
 
     ``temp`` holds one value per row, or is empty (then ``temp_default`` is used). The
     caller allocates the outputs for up to K rows (``output_bound``; more than a call
-    completes), zero-filled except ``floats``:
+    completes); every entry of the first k rows is written (the arrays may be reused):
 
     * floats (K·(11 + 6·order + 6·nsub),): float64 blocks of K rows each, ``t (K) |
       gyro (K, 3) | accel (K, 3) | mag (K, 3) | temperature (K) | dtheta (K, order, 3) | dv |
@@ -603,7 +603,10 @@ def _output(cp, gp, gs, ap, as_, cs, k, b, t_out, gyro_out, accel_out, mag_out, 
     else:
         for a in range(3):
             mag_out[k, a] = np.nan
+            words[k, 7 + a] = 0
         flags |= FLAG_MAG_INVALID
+        status_bytes[k, 0] = 0
+        status_bytes[k, 1] = 0
         status_bytes[k, 2] = bitm
     cs.mag_new = 0
     flags_out[k] = flags

@@ -365,8 +365,8 @@ class MPU9250:
     def _outputs(self, n: int, increments: int, subintervals: int) -> tuple[np.ndarray, ...]:
         """The kernel's output arrays for n input rows (``K.output_bound`` rows of each)."""
         bound = K.output_bound(n, self._ticks_per_input, self._out_div)
-        return (np.empty(bound * (11 + 6 * (increments + subintervals))), np.zeros((bound, 10), dtype=np.int16),
-                np.zeros((bound, 3), dtype=np.uint8), np.zeros(bound, dtype=np.int32))
+        return (np.empty(bound * (11 + 6 * (increments + subintervals))), np.empty((bound, 10), dtype=np.int16),
+                np.empty((bound, 3), dtype=np.uint8), np.empty(bound, dtype=np.int32))
 
     @staticmethod
     def _samples(status: int, k: int, out: tuple[np.ndarray, ...], increments: int, subintervals: int) -> ImuSamples:

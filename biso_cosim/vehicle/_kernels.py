@@ -80,6 +80,52 @@ PARAMS_SIZE = 22
 _BACK, _AHEAD = 8, 80  # search window of the path locator, samples
 
 
+# _history_rows' outcomes
+HISTORY_READ, HISTORY_WARNED, HISTORY_STALE = 0, 1, 2
+
+
+@jit
+def _history_rows(history, layout, n, t_start, warnings, rows):
+    """The sensordata of the last n steps, which started at time t_start, as rows (n,
+    nsensordata) oldest first, from MuJoCo's history buffer. ``layout`` (nsensor, 4): each
+    sensor's history address, number of samples, sensordata address and dimension; a
+    sensor's history is [user slot, index of the newest sample, times (nsample), values
+    (nsample, dim)], a ring, each value stamped with the time of its step's start.
+
+    Returns HISTORY_READ, or, with rows unfinished, HISTORY_WARNED after a MuJoCo warning
+    (``warnings``, MjData.warning.number, zero before the steps: MuJoCo may reset the data,
+    the history with it) or HISTORY_STALE when the oldest stamp is not t_start (the clock
+    was set back since the rings started: MuJoCo then does not advance them). The warning
+    counters are cleared, as MuJoCo's rollout clears them."""
+    warned = False
+    for i in range(warnings.shape[0]):
+        if warnings[i] != 0:
+            warned = True
+            warnings[i] = 0
+    if warned:
+        return HISTORY_WARNED
+    for s in range(layout.shape[0]):
+        adr, nsample, col, dim = layout[s, 0], layout[s, 1], layout[s, 2], layout[s, 3]
+        newest = int(history[adr + 1])
+        times = adr + 2
+        values = times + nsample
+        if history[times + (newest - (n - 1)) % nsample] != t_start:
+            return HISTORY_STALE
+        for j in range(n):
+            slot = (newest - (n - 1) + j) % nsample
+            for c in range(dim):
+                rows[j, col + c] = history[values + slot * dim + c]
+    return HISTORY_READ
+
+
+@jit
+def _wheel_odometry(packed, wheel_radius_m, out):
+    """Rear-axle speed (m/s) of each packed truth row from the undriven front wheels into
+    out: ½(fl + fr spin rate)·radius·cos(steering) (columns 18, 19 and 22)."""
+    for i in range(packed.shape[0]):
+        out[i] = 0.5 * (packed[i, 18] + packed[i, 19]) * wheel_radius_m * math.cos(packed[i, 22])
+
+
 @jit
 def _index_at(ps, s):
     i = np.searchsorted(ps, s, side="right") - 1

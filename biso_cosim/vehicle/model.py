@@ -31,16 +31,23 @@ def car_spec() -> mujoco.MjSpec:
     return mujoco.MjSpec.from_string(CAR_XML.read_text())
 
 
-def build_model(terrain: Terrain, *, timestep_s: float = 0.001) -> tuple[mujoco.MjModel, list[HeightField]]:
+def build_model(terrain: Terrain, *, timestep_s: float = 0.001,
+                history_steps: int = 0) -> tuple[mujoco.MjModel, list[HeightField]]:
     """Compile the car on ``terrain``: the ground plane plus one height field per patch.
 
     Returns the model and the sampled patches. The magnetic field of the model stays zero:
-    the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`.
+    the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`. With
+    ``history_steps`` every sensor keeps its values of that many steps in MuJoCo's history
+    buffer (``MjData.history``; no delay, so ``sensordata`` is unchanged).
     """
     if not timestep_s > 0.0:
         raise ValueError(f"timestep_s must be > 0, got {timestep_s}")
+    if isinstance(history_steps, bool) or not isinstance(history_steps, int) or history_steps < 0:
+        raise ValueError(f"history_steps must be an int >= 0, got {history_steps!r}")
     spec = car_spec()
     spec.option.timestep = timestep_s
+    for sensor in spec.sensors:
+        sensor.nsample = history_steps
     # the collision plane is hidden (group 3); what is drawn is a plane 2 cm below it, so that
     # the height-field patches, whose borders lie at z = 0, do not z-fight with the ground
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],

@@ -12,10 +12,10 @@ import math
 
 import mujoco
 import numpy as np
-from mujoco import rollout
 
 from biso_cosim.frames import _q_from_euler
-from biso_cosim.vehicle._kernels import _drive_period, _interpolate_rows, _pack_rows
+from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, _drive_period, _history_rows,
+                                         _interpolate_rows, _pack_rows)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -25,11 +25,13 @@ __all__ = ["Truth", "VehicleSim"]
 # Before time zero the car settles on its suspension with the brakes on for this long, so
 # that the first samples show a car at rest rather than contacts finding their depth.
 _SETTLE_S = 3.0
-_SETTLED_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
-# what MuJoCo's rollout restores before its steps (the warm start is passed separately) and
-# what it sets each step; ints, which the bindings take without an enum conversion per call
-_ROLLOUT_STATE = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-_CONTROL = int(mujoco.mjtState.mjSTATE_CTRL)
+# Everything a step depends on (time, physics, warm start, controls, ...) except the sensor
+# history, which only carries each period's rows out (see ``_step_rows``); an int, which the
+# bindings take without an enum conversion per call.
+PHYSICS_STATE = int(mujoco.mjtState.mjSTATE_INTEGRATION) & ~int(mujoco.mjtState.mjSTATE_HISTORY)
+# The most steps one ``mj_step(m, d, nstep)`` call of ``_step_rows`` covers (the length of
+# each sensor's history ring).
+_MAX_HISTORY_STEPS = 100
 
 
 def _columns(index: int | slice, doc: str) -> property:
@@ -109,7 +111,9 @@ class VehicleSim:
         self.physics_rate_hz = float(physics_rate_hz)
         self.control_rate_hz = float(control_rate_hz)
         self.steps_per_control = int(round(ratio))
-        self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz)
+        self._history_steps = min(self.steps_per_control, _MAX_HISTORY_STEPS)
+        self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz,
+                                               history_steps=self._history_steps)
         self.data = mujoco.MjData(self.model)
         self.index = CarIndex.of(self.model)
         params = vehicle_parameters(self.model)
@@ -120,12 +124,15 @@ class VehicleSim:
             brake_kv=params["brake_kv_nms_per_rad"],
             max_brake_torque_nm=params["max_brake_torque_per_wheel_nm"],
             max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params)
-        # the steps of a control period run in MuJoCo's C rollout, which records sensordata
-        # after every step (no Python per physics step); its arrays are allocated once
-        self._rollout = rollout.Rollout(nthread=0)
-        self._rollout_io = self._rollout_arrays(self.steps_per_control)
-        self._models, self._datas, self._dt_s = [self.model], [self.data], float(self.model.opt.timestep)
-        self._qacc_warmstart, self._ctrl, self._sensordata = self.data.qacc_warmstart, self.data.ctrl, self.data.sensordata
+        # a control period is one mj_step(m, d, nstep) call; the sensors' history rings hold
+        # its sensordata rows (no Python per physics step). Arrays and views made once:
+        m = self.model
+        self._rows = np.empty((self.steps_per_control, m.nsensordata))
+        self._start_state = np.empty(mujoco.mj_stateSize(m, PHYSICS_STATE))
+        self._history_layout = np.column_stack([m.sensor_historyadr, m.sensor_history[:, 0], m.sensor_adr,
+                                                m.sensor_dim]).astype(np.int64)
+        self._history, self._warnings = self.data.history, self.data.warning.number
+        self._ctrl, self._sensordata = self.data.ctrl, self.data.sensordata
         ix = self.index
         self._brake_ids = ix.brakes.tolist()
         self._actuators = np.array([ix.steer, ix.drive, *ix.brakes], dtype=np.int64)
@@ -161,11 +168,12 @@ class VehicleSim:
             for _ in range(int(round(_SETTLE_S * self.physics_rate_hz))):
                 mujoco.mj_step(m, d)
             d.time = 0.0
-            self._settled = (np.empty(mujoco.mj_stateSize(m, _SETTLED_STATE)), d.sensordata.copy())
-            mujoco.mj_getState(m, d, self._settled[0], _SETTLED_STATE)
+            self._settled = (np.empty(mujoco.mj_stateSize(m, PHYSICS_STATE)), d.sensordata.copy())
+            mujoco.mj_getState(m, d, self._settled[0], PHYSICS_STATE)
         else:  # the same settled start as the first time, without settling again
-            mujoco.mj_setState(m, d, self._settled[0], _SETTLED_STATE)
+            mujoco.mj_setState(m, d, self._settled[0], PHYSICS_STATE)
             d.sensordata[:] = self._settled[1]
+        self._restart_history()
         self.steps_done = 0
         self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``step``)
         self.driver.reset()
@@ -219,34 +227,69 @@ class VehicleSim:
         steps (a buffer that the next call overwrites) and the index of the first step."""
         m, d = self.model, self.data
         n = self.steps_per_control if n is None else n
-        io = self._rollout_io if n == self._rollout_io[2].shape[1] else self._rollout_arrays(n)
-        state0, warmstart, control, sensordata, (state_row, warm_row, control_rows, sensor_rows) = io
-        mujoco.mj_getState(m, d, state_row, _ROLLOUT_STATE)
-        warm_row[:] = self._qacc_warmstart  # (views of MjData's arrays, and of the batch's rows, made once)
-        control_rows[:] = self._ctrl
-        t0_s = d.time
-        self._rollout.rollout(self._models, self._datas, state0, control, control_spec=_CONTROL, skip_checks=True,
-                              nstep=n, initial_warmstart=warmstart, state=None, sensordata=sensordata)
-        if not d.time - t0_s > (n - 0.5) * self._dt_s:  # the clock did not advance n steps
-            # the rollout stops at a MuJoCo warning (e.g. a bad velocity, on which MuJoCo resets
-            # the data and goes on): the period again from its start, one mj_step at a time
-            self.periods_with_warnings += 1
-            mujoco.mj_setState(m, d, state_row, _ROLLOUT_STATE)
-            d.qacc_warmstart[:] = warm_row
-            for k in range(n):
-                mujoco.mj_step(m, d)
-                sensor_rows[k] = d.sensordata
+        rows = self._rows if n == self._rows.shape[0] else np.empty((n, m.nsensordata))
+        mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
+        done = 0
+        while done < n:
+            k = min(n - done, self._history_steps)
+            t_start = d.time
+            mujoco.mj_step(m, d, k)
+            outcome = _history_rows(self._history, self._history_layout, k, t_start, self._warnings,
+                                    rows[done:done + k])
+            if outcome != HISTORY_READ:
+                self._restep(rows, outcome)
+                break
+            done += k
         first = self.steps_done
         self.steps_done += n
-        return sensor_rows, first
+        return rows, first
 
-    def _rollout_arrays(self, n: int) -> tuple:
-        """Input and output arrays of a rollout of ``n`` steps: initial state, warm start,
-        controls, sensordata (batch of one), and the tuple of their single rows."""
-        m = self.model
-        arrays = (np.empty((1, mujoco.mj_stateSize(m, _ROLLOUT_STATE))), np.empty((1, m.nv)),
-                  np.empty((1, n, m.nu)), np.empty((1, n, m.nsensordata)))
-        return (*arrays, tuple(a[0] for a in arrays))
+    def _step_period(self) -> tuple[float, int] | None:
+        """A control period as one ``mj_step(m, d, n)`` call whose sensordata rows stay in
+        the sensors' history for the caller to read (``_history_rows`` into ``_rows``; the
+        co-simulation's period kernel does, saving a kernel call), or ``_restep`` when that
+        fails. Returns the time at the period's start and the index of its first step; None,
+        without stepping, when a period is longer than the history (use ``_step_rows``)."""
+        n = self.steps_per_control
+        if n > self._history_steps:
+            return None
+        m, d = self.model, self.data
+        mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
+        t_start = d.time
+        mujoco.mj_step(m, d, n)
+        first = self.steps_done
+        self.steps_done += n
+        return t_start, first
+
+    def _restep(self, rows: np.ndarray, outcome: int) -> np.ndarray:
+        """The rows of the steps since the last period's start, after ``_history_rows`` could
+        not read them (``outcome``): MuJoCo warned (e.g. a bad velocity, on which it resets
+        the data and goes on, history and all), or the clock was set back by hand. The period
+        is stepped again from its start one mj_step at a time (the same steps), and the
+        history rings start afresh."""
+        m, d = self.model, self.data
+        self.periods_with_warnings += outcome == HISTORY_WARNED
+        mujoco.mj_setState(m, d, self._start_state, PHYSICS_STATE)
+        for i in range(rows.shape[0]):
+            mujoco.mj_step(m, d)
+            rows[i] = d.sensordata
+        self._warnings[:] = 0
+        self._restart_history()
+        return rows
+
+    def _restart_history(self) -> None:
+        """Start every sensor's history ring afresh just before the current time, holding the
+        current sensordata: needed whenever the clock is set back (a reset, a restored
+        state), since MuJoCo advances a ring only past its newest stamp."""
+        m, d = self.model, self.data
+        dt = m.opt.timestep
+        for s in range(m.nsensor):
+            nsample = int(m.sensor_history[s, 0])
+            if nsample:
+                adr, dim = m.sensor_adr[s], m.sensor_dim[s]
+                times = d.time - dt * np.arange(nsample, 0, -1)
+                values = np.ascontiguousarray(np.broadcast_to(d.sensordata[adr:adr + dim], (nsample, dim)))
+                mujoco.mj_initSensorHistory(m, d, s, times, values, d.time - dt)
 
     def current_truth(self) -> Truth:
         """The truth of the current state as one row (at the time of the last step's start)."""
