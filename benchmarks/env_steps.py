@@ -28,8 +28,8 @@ the ratios env/bare and env/nstep (the issue's budget: overhead over physics < 3
 ``interleaved``: env/nstep with blocks of one step (the median over the repetitions): each
 environment step then starts with caches the bare physics has filled, as when a policy's
 forward pass runs between steps; steps/s. The co-simulation steps the physics of a control
-period in MuJoCo's C rollout (sensor rows after every step), so it pays no Python per
-physics step.
+period by one ``mj_step(model, data, nstep)`` call too, and reads the sensor rows of its
+steps from MuJoCo's sensor history, so it pays no Python per physics step.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ def _sensor_inputs(packed, field_w, omega_b, force_b, mag_b):
 @jit
 def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs,
                   chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats, words, status_bytes, flags, at,
-                  wheel_radius_m, odometry):
+                  wheel_radius_m, odometry, flags64):
     """A control period's sensing in one call, the steps ``CoSimulation._sense`` takes one
     Python call each: MuJoCo's sensordata ``rows``, read first from its sensor ``history``
     when that is not empty (``VehicleSim._step_period``: ``_history_rows`` with ``layout``,
@@ -39,8 +39,9 @@ def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, 
     the MPU-9250's inputs (``_sensor_inputs``), the chip itself
     (``sensors._kernels._simulate``, writing ``floats``, ``words``, ``status_bytes``,
     ``flags``), its time stamps shifted by ``t_shift_s``, the truth at them (``Truth.at``,
-    from the row ``before`` the period when given) into ``at``, and, when ``odometry`` is
-    not empty, the wheel odometry at them into it (``CoSimulation._odometry_mps``).
+    from the row ``before`` the period when given) into ``at``, when ``odometry`` is not
+    empty the wheel odometry at them into it (``CoSimulation._odometry_mps``), and the
+    samples' flags as int64 (the estimators' ``imu_flags``) into ``flags64``.
 
     Returns (status, k): -1 and the number of samples on success; the chip's status when it
     refused the rows (a row index, or -2), or -3 for a position that is not finite (then
@@ -72,4 +73,6 @@ def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, 
         _interpolate_rows(before, packed, t0_s, rate_hz, t_s, quat_col, at[:k])
         if odometry.shape[0]:
             _wheel_odometry(at[:k], wheel_radius_m, odometry[:k])
+    for i in range(k):
+        flags64[i] = flags[i]
     return -1, k

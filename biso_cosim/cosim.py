@@ -68,6 +68,10 @@ def _check_command(command: Any, max_steer_rad: float) -> None:
     """An agent's command: a DriverCommand of finite values within the actuators' ranges."""
     if not isinstance(command, DriverCommand):
         raise TypeError(f"command must be a DriverCommand(steer_rad, drive, brake), got {type(command).__name__}")
+    steer, drive, brake = command.steer_rad, command.drive, command.brake
+    if (type(steer) is float and type(drive) is float and type(brake) is float and -max_steer_rad <= steer <= max_steer_rad
+            and -1.0 <= drive <= 1.0 and 0.0 <= brake <= 1.0):
+        return  # the common case in one expression (NaN compares false; inf is out of range)
     for name, low, high in (("steer_rad", -max_steer_rad, max_steer_rad), ("drive", -1.0, 1.0), ("brake", 0.0, 1.0)):
         value = getattr(command, name)
         if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value) and low <= value <= high):
@@ -220,7 +224,7 @@ class CoSimulation:
         self.keep_log = keep_log
         # {} from a caller that is done with each step's samples before the next step (the
         # environments): without a log the sensor then writes every period's samples into the
-        # same arrays (n input rows -> (outputs, {k: ImuSamples of their first k rows})).
+        # same arrays (n input rows -> (outputs, int64 flags, {k: ImuSamples of their first k rows})).
         self._sensor_buffers: dict[int, tuple] | None = None
         self.duration_s = float(duration_s)
         self.seed = int(seed)
@@ -544,18 +548,20 @@ class CoSimulation:
         views = None
         if self._sensor_buffers is None or self.keep_log:
             out = imu._outputs(n, orders, subs)
+            flags64 = np.empty(out[3].shape[0], dtype=np.int64)
         else:
             if n not in self._sensor_buffers:
-                self._sensor_buffers[n] = (imu._outputs(n, orders, subs), {})
-            out, views = self._sensor_buffers[n]
-        bound = out[3].shape[0]
+                out = imu._outputs(n, orders, subs)
+                self._sensor_buffers[n] = (out, np.empty(out[3].shape[0], dtype=np.int64), {})
+            out, flags64, views = self._sensor_buffers[n]
+        bound = flags64.shape[0]
         at = np.empty((bound, Truth.WIDTH))
         odometry = np.empty(bound if self._wants_odometry else 0)
         before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
         status, k = _sense_period(*history, vehicle._gather, first_step, vehicle.physics_rate_hz,
                                   self.magnetic.earth.field_enu_ut, before, *imu._kernel_state(), orders, subs,
                                   self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
-                                  vehicle.index.wheel_radius_m, odometry)
+                                  vehicle.index.wheel_radius_m, odometry, flags64)
         if status == -5:  # the history did not hold the rows (nothing changed): the period stepped again
             return self._sense_period(vehicle._restep(vehicle._rows, k), first_step)
         truth = Truth(packed)
@@ -572,7 +578,7 @@ class CoSimulation:
         self._last_truth_row = Truth(packed[-1:])
         if self._has_gyro_offset:
             self._remove_gyro_offset(samples)
-        return self._estimate(truth, samples, Truth(at[:k]), odometry[:k])
+        return self._estimate(truth, samples, Truth(at[:k]), odometry[:k], flags64[:k])
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
@@ -590,10 +596,11 @@ class CoSimulation:
         self._remove_gyro_offset(samples)
         return self._estimate(truth, samples, self._truth_at(samples.t_s, truth))
 
-    def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None
-                  ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+    def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None,
+                  imu_flags: np.ndarray | None = None) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """GNSS, navigators and estimators over the sensor's samples (and the log);
-        ``odometry``: the wheel odometry at the samples when already at hand."""
+        ``odometry``, ``imu_flags``: the wheel odometry at the samples and their flags as
+        int64, when already at hand."""
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
@@ -602,7 +609,6 @@ class CoSimulation:
             if self.keep_log:
                 self._nav_log[label].append(navigated)
         outputs = {}
-        imu_flags = None
         for key, est in self.estimators.items():
             inputs = getattr(est, "inputs", ())
             extra = {}

@@ -10,6 +10,7 @@ import numpy as np
 from biso_cosim._numba import jit
 from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
+from biso_cosim.vehicle._kernels import S_CROSS, S_S
 
 __all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
            "_route_ahead",
@@ -120,12 +121,14 @@ def _navigate_period(q, packed, sensordata, steer_index, half_radius_m, dt, pose
 
 @jit
 def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_index, wheel_radius_m, nav_pose,
-                  use_truth, path_x, path_y, path_s, nav_hint, offsets, values):
+                  use_truth, path_x, path_y, path_s, nav_hint, offsets, driver_state, values):
     """Driving-v0's observation and the true state of its ``info``, from the newest truth row
-    ``newest`` (packed, 23 columns) and MuJoCo's sensordata (rear axle x, y; steering).
+    ``newest`` (packed, 23 columns), MuJoCo's sensordata (rear axle x, y; steering) and the
+    driver's state array (progress, cross-track error).
 
-    values (5,) = tilt of the body's up axis (rad), true rear-axle x, y (m) and yaw (rad),
-    angle between q_est and the true attitude (rad). obs = window (ravelled), gnss, q_est,
+    values (9,) = tilt of the body's up axis (rad), true rear-axle x, y (m) and yaw (rad),
+    angle between q_est and the true attitude (rad), forward speed (m/s), the driver's
+    progress and cross-track error (m), the path's length (m). obs = window (ravelled), gnss, q_est,
     wheel speeds (rate × radius), steering, the pose the route ahead is placed from (nav_pose,
     or the true pose with use_truth), the route ahead of it (``_route_ahead`` from the
     nearest point found by ``_locate`` in Path.locate's window around nav_hint). Returns the
@@ -136,6 +139,10 @@ def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_in
     values[2] = sensordata[axle_x + 1]
     values[3] = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
     values[4] = _angle(q_est, newest[7:11])
+    values[5] = newest[17]
+    values[6] = driver_state[S_S]
+    values[7] = driver_state[S_CROSS]
+    values[8] = path_s[path_s.shape[0] - 1]
     pose = values[1:4] if use_truth else nav_pose
     i = 0
     for v in window.ravel():

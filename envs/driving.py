@@ -160,6 +160,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         self.observation_structure.update(q_wb=(4,), wheel_speed_mps=(4,), steering_rad=(1,), pose=(3,),
                                           route_ahead=(self.preview_points, 2))
         self.observation_space = self._observation_space()
+        self._observation_size = self.observation_space.shape[0]
         self._preview_offsets = self.preview_spacing_m * np.arange(1, self.preview_points + 1)
         self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
         self._pose = np.zeros(3)  # navigation pose: rear-axle x, y (m), yaw (rad)
@@ -240,22 +241,21 @@ class DrivingEnv(CosimEnv, EzPickle):
         (``_driving_view``) for both, from the newest truth row and MuJoCo's sensordata."""
         vehicle = self._sim.vehicle
         path = self._sim.route.path
-        observation = np.empty(self.observation_space.shape[0])
-        values = np.empty(5)
+        observation = np.empty(self._observation_size)
+        values = np.empty(9)
         gnss = self._gnss.values if self._gnss is not None else _NO_GNSS
         self._nav_index = _driving_view(
             observation, self._window.values, gnss, self._q_est, self._newest.packed[0], vehicle._sensordata,
-            vehicle._axle_x, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose, self.pose_source == "truth",
-            path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets, values)
-        tilt, x, y, yaw, attitude_error = values.tolist()
-        state = vehicle.driver.state
-        s_m, cross_track_m = state.s_m, state.cross_track_m
+            vehicle._axle_x, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose,
+            self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets,
+            vehicle.driver.state.array, values)
+        tilt, x, y, yaw, attitude_error, speed_mps, s_m, cross_track_m, length_m = values.tolist()
         pose = self._pose
         nav_x, nav_y, nav_yaw = pose.tolist()
         info = {
             "distance_m": s_m,
             "cross_track_m": cross_track_m,
-            "speed_mps": float(self._newest.speed_mps[0]),
+            "speed_mps": speed_mps,
             "tilt_rad": tilt,
             "attitude_error_rad": attitude_error,
             "nav_pose": pose.copy(),
@@ -264,7 +264,7 @@ class DrivingEnv(CosimEnv, EzPickle):
             "heading_error_rad": math.remainder(nav_yaw - yaw, 2.0 * math.pi),
             "rolled_over": tilt > self.rollover_tilt_rad,
             "off_route": abs(cross_track_m) > self.max_cross_track_m,
-            "finished": s_m >= path.length_m - _END_TOLERANCE_M,
+            "finished": s_m >= length_m - _END_TOLERANCE_M,
         }
         return info, observation
 

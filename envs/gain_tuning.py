@@ -15,8 +15,9 @@ from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angle, _mean_angles_to
+from biso_cosim.envs._kernels import _angles_to, _mean_angles_to
 from biso_cosim.routes import Route
+from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["GainTuningEnv", "DEFAULT_TUNING", "CROSS_LINK_RATIO"]
 
@@ -280,18 +281,21 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def _measure(self, truth, outputs) -> dict[str, Any]:
         """Mean errors of both copies over the step's samples, and the state at the newest."""
         tuned, baseline = outputs["tuned"].q_wb, outputs["baseline"].q_wb
+        newest = self._newest.packed[0]
+        q_true = newest[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4]
         if len(tuned):
             error, baseline_error = _mean_angles_to(tuned, baseline, truth.q_wb, self._tuned_q, self._baseline_q)
         else:  # no sample this step (ODR below the control rate): the newest estimate stands
-            q_true = self._newest.q_wb[0]
-            error = _angle(self._tuned_q, q_true)
-            baseline_error = _angle(self._baseline_q, q_true)
-        return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(self._newest.t_s[0]),
-                "q_wb_true": self._newest.q_wb[0].copy(), "q_wb_tuned": self._tuned_q.copy(),
-                "q_wb_baseline": self._baseline_q.copy()}
+            error, baseline_error = _angles_to(self._tuned_q, self._baseline_q, q_true)
+        return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(newest[0]),
+                "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(), "q_wb_baseline": self._baseline_q.copy()}
 
     def _observation(self) -> np.ndarray:
         return np.concatenate([*self._sensor_parts(), self._tuned_q, self._gains])
+
+
+# BISO's gains for a design frequency of 1 Hz, by reading (``gains_from_cutoff``)
+_UNIT_GAINS = {reading: gains_from_cutoff(1.0, reading) for reading in ("D", "L")}
 
 
 def _biso_gains_of(params: Any) -> dict[str, Any]:
@@ -304,7 +308,7 @@ def _biso_gains_of(params: Any) -> dict[str, Any]:
     kp = PAPER_K_P if params.k_p is None else params.k_p
     if not isinstance(k, (int, float)) or not isinstance(kp, (int, float)):
         return {"k": k, "k_p": kp, "cutoff_hz": None, CROSS_LINK_RATIO: None}
-    k1, kp1 = gains_from_cutoff(1.0, params.reading)  # gains are proportional to f_c
+    k1, kp1 = _UNIT_GAINS[params.reading]  # gains are proportional to f_c
     cutoff = k / k1
     return {"k": k, "k_p": kp, "cutoff_hz": cutoff, CROSS_LINK_RATIO: kp / (kp1 * cutoff) if cutoff > 0.0 else None}
 

@@ -9,6 +9,7 @@ from biso_cosim.envs._kernels import (_angle, _angles_to, _dead_reckon, _driving
                                       _navigate_period, _push_window, _route_ahead)
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
+from biso_cosim.vehicle._kernels import S_CROSS, S_S
 
 
 def push_reference(values, gyro, accel, mag, fresh):
@@ -103,13 +104,15 @@ def test_driving_view_matches_the_plain_parts(use_truth):
     sensordata[3:5] = path.x_m[i] + 0.7, path.y_m[i] - 0.4  # the rear axle, near the path
     nav_pose = np.array([path.x_m[i] - 0.3, path.y_m[i] + 0.2, 0.4])
     offsets = 2.0 * np.arange(1, 11)
-    obs, values = np.empty(11 * 4 + 9 + 12 + 20), np.empty(5)
+    driver_state = rng.normal(size=12)
+    obs, values = np.empty(11 * 4 + 9 + 12 + 20), np.empty(9)
     nearest = _driving_view(obs, window, gnss, q_est, newest, sensordata, 3, 29, 0.316, nav_pose, use_truth,
-                            path.x_m, path.y_m, path.s_m, i - 3, offsets, values)
+                            path.x_m, path.y_m, path.s_m, i - 3, offsets, driver_state, values)
     w, x, y, z = newest[7:11]
     true_pose = [sensordata[3], sensordata[4], math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))]
     assert values.tolist() == [math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0)), *true_pose,
-                               _angle(q_est, newest[7:11])]
+                               _angle(q_est, newest[7:11]), newest[17], driver_state[S_S], driver_state[S_CROSS],
+                               path.length_m]
     pose = true_pose if use_truth else nav_pose.tolist()
     index, s, _ = path.locate(pose[0], pose[1], i - 3)
     ahead = np.empty((10, 2))

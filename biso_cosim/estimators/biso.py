@@ -727,9 +727,15 @@ class BisoEstimator(Estimator):
             params.__dict__.update(self._params.__dict__)
             for name, value in changes.items():
                 object.__setattr__(params, name, value)
-            k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
+            k, kp = params.k, params.k_p
+            if (params.cutoff_hz is None and type(k) is float and type(kp) is float and 0.0 < k < math.inf
+                    and 0.0 <= kp < math.inf):  # two valid scalars, checked in one expression
+                gains = ((k,) * 4, (kp,) * 4)
+            else:
+                gains = _resolved_gains(params)  # validates them (the messages of the full path)
+            k, kp = gains
             if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
-                self._params, self._coef = params, _with_closed_gains(self._coef, params, (k, kp))
+                self._params, self._coef = params, _with_closed_gains(self._coef, params, gains)
                 return
         super().set_params(**changes)
 
