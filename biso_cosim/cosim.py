@@ -69,8 +69,8 @@ def _check_command(command: Any, max_steer_rad: float) -> None:
     if not isinstance(command, DriverCommand):
         raise TypeError(f"command must be a DriverCommand(steer_rad, drive, brake), got {type(command).__name__}")
     steer, drive, brake = command.steer_rad, command.drive, command.brake
-    if (type(steer) is float and type(drive) is float and type(brake) is float and -max_steer_rad <= steer <= max_steer_rad
-            and -1.0 <= drive <= 1.0 and 0.0 <= brake <= 1.0):
+    if (type(steer) is float and type(drive) is float and type(brake) is float
+            and -max_steer_rad <= steer <= max_steer_rad and -1.0 <= drive <= 1.0 and 0.0 <= brake <= 1.0):
         return  # the common case in one expression (NaN compares false; inf is out of range)
     for name, low, high in (("steer_rad", -max_steer_rad, max_steer_rad), ("drive", -1.0, 1.0), ("brake", 0.0, 1.0)):
         value = getattr(command, name)

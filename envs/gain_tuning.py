@@ -288,7 +288,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
         else:  # no sample this step (ODR below the control rate): the newest estimate stands
             error, baseline_error = _angles_to(self._tuned_q, self._baseline_q, q_true)
         return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(newest[0]),
-                "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(), "q_wb_baseline": self._baseline_q.copy()}
+                "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(),
+                "q_wb_baseline": self._baseline_q.copy()}
 
     def _observation(self) -> np.ndarray:
         return np.concatenate([*self._sensor_parts(), self._tuned_q, self._gains])

@@ -317,7 +317,7 @@ class Estimator:
         self._coef = self._coefficients(params, self.fs_hz)
         self._q0: np.ndarray | None = None
         self._state = self._initial_state(None)
-        self._prechecked = None  # see _update_prechecked
+        self._prechecked = None  # (parameter record, input requirements) checked: see _update_prechecked
 
     # -- parameters -------------------------------------------------------------------
 
@@ -408,11 +408,15 @@ class Estimator:
         ``_input_requirements`` changes (a parameter can change what an input must be, e.g.
         BISO's ``gyro_step``); the calls between go straight to the kernel, with the same
         results bit for bit."""
-        requirements = self._input_requirements()
-        if requirements != self._prechecked or type(self).update is not Estimator.update:
-            out = self.update(gyro_b, accel_b, mag_b, **inputs)
-            self._prechecked = requirements
-            return out
+        params, checked = self._params, self._prechecked
+        if checked is None or params is not checked[0]:  # (a parameter record is replaced, never changed)
+            requirements = self._input_requirements()
+            if checked is None or requirements != checked[1] or type(self).update is not Estimator.update:
+                out = self.update(gyro_b, accel_b, mag_b, **inputs)
+                if type(self).update is Estimator.update:
+                    self._prechecked = (params, requirements)
+                return out
+            self._prechecked = (params, requirements)
         k = gyro_b.shape[0]
         extra = self._absent_inputs | inputs
         q_out = np.empty((k, 4))
