@@ -202,6 +202,19 @@ def test_a_control_period_from_the_sensor_history_equals_mj_step_calls_bit_for_b
         np.testing.assert_array_equal(a.data.sensordata, b.data.sensordata)
 
 
+def test_sensor_history_of_the_model():
+    """``history_steps``: every sensor keeps that many samples (none by default); bad values
+    are refused naming the argument."""
+    terrain = Terrain(())
+    plain, _ = build_model(terrain)
+    model, _ = build_model(terrain, history_steps=20)
+    assert plain.nhistory == 0 and (model.sensor_history[:, 0] == 20).all()
+    assert model.nhistory == model.nsensor * (2 + 20) + 20 * model.nsensordata  # [user, newest, times, values]
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError, match="history_steps must be an int >= 0"):
+            build_model(terrain, history_steps=bad)
+
+
 def test_a_clock_set_back_does_not_confuse_the_history():
     """MuJoCo advances a sensor's history ring only past its newest time stamp: after the
     clock is set back (here by hand, without ``_restart_history``) the rows of the next
