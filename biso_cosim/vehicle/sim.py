@@ -175,7 +175,7 @@ class VehicleSim:
             d.sensordata[:] = self._settled[1]
         self._restart_history()
         self.steps_done = 0
-        self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``step``)
+        self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``_restep``)
         self.driver.reset()
 
     # ------------------------------------------------------------------ stepping
