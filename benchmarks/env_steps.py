@@ -7,7 +7,9 @@ co-simulation step alone (physics, sensor, estimators: the environment minus its
 and of bare ``mj_step`` calls of the same model over the same simulated time, with the same
 actuator commands from the same states, all in the same process. Then steps/s
 of ``gym.make_vec`` with 2 environments, synchronous and asynchronous (one process each),
-by wall time (the asynchronous figure needs two free cores to show its gain).
+by wall time; and, for reference, what the vector machinery itself costs per step with a
+trivial environment (CartPole-v1): in asynchronous mode a pipe round trip to each worker,
+paid on top of the steps the workers run in parallel.
 
     python benchmarks/env_steps.py                       # 40 s episodes, every environment
     python benchmarks/env_steps.py --envs Driving --duration 60 --repeat 5
@@ -208,6 +210,22 @@ def time_vector(env_id: str, mode: str, duration: float, actions: np.ndarray, se
     return 2 * len(actions) / elapsed
 
 
+def round_trip(mode: str, steps: int = 2000) -> float:
+    """µs per step of ``gym.make_vec("CartPole-v1", num_envs=1)``: the vector machinery's own
+    cost per step (in ``async`` mode a pipe round trip to the worker process), for reference."""
+    vec = gym.make_vec("CartPole-v1", num_envs=1, vectorization_mode=mode)
+    vec.reset(seed=0)
+    action = np.zeros(1, dtype=np.int64)
+    for _ in range(50):
+        vec.step(action)
+    start = time.perf_counter()
+    for _ in range(steps):
+        vec.step(action)
+    elapsed = time.perf_counter() - start
+    vec.close()
+    return 1e6 * elapsed / steps
+
+
 def main() -> None:
     names = [env_id.split("/")[1].split("-")[0] for env_id in ENV_IDS]
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -252,6 +270,8 @@ def main() -> None:
               f"{us['bare']:>8.1f} {us['nstep']:>9.1f} {best['env'] / best['bare']:>9.3f} "
               f"{best['env'] / best['nstep']:>10.3f} {np.median(interleaved):>12.3f} "
               f"{done / best['env']:>8.0f} {sync:>7.0f} {asynchronous:>8.0f}")
+    print(f"vector machinery per step, CartPole-v1 (1 copy) for reference: sync {round_trip('sync'):.0f} µs, "
+          f"async {round_trip('async'):.0f} µs")
 
 if __name__ == "__main__":
     main()
