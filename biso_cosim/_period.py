@@ -29,14 +29,14 @@ def _sensor_inputs(packed, field_w, omega_b, force_b, mag_b):
 
 
 @jit
-def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, rate_hz, field_w, before, cp, ch, cs,
-                  chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats, words, status_bytes, flags, at,
-                  wheel_radius_m, odometry, flags64):
+def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_w, before,
+                  cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats, words, status_bytes,
+                  flags, at, wheel_radius_m, odometry, flags64):
     """A control period's sensing in one call, the steps ``CoSimulation._sense`` takes one
     Python call each: MuJoCo's sensordata ``rows``, read first from its sensor ``history``
     when that is not empty (``VehicleSim._step_period``: ``_history_rows`` with ``layout``,
-    ``t_start``, ``warnings``), the truth rows packed from them (``VehicleSim._truth``),
-    the MPU-9250's inputs (``_sensor_inputs``), the chip itself
+    ``t_start``, ``warnings``, ``sensordata``), the truth rows packed from them
+    (``VehicleSim._truth``), the MPU-9250's inputs (``_sensor_inputs``), the chip itself
     (``sensors._kernels._simulate``, writing ``floats``, ``words``, ``status_bytes``,
     ``flags``), its time stamps shifted by ``t_shift_s``, the truth at them (``Truth.at``,
     from the row ``before`` the period when given) into ``at``, when ``odometry`` is not
@@ -50,7 +50,7 @@ def _sense_period(history, layout, t_start, warnings, rows, gather, first_step, 
     the history does not hold the rows (nothing has changed: ``VehicleSim._restep``).
     """
     if history.shape[0]:
-        outcome = _history_rows(history, layout, rows.shape[0], t_start, warnings, rows)
+        outcome = _history_rows(history, layout, rows.shape[0], t_start, warnings, sensordata, rows)
         if outcome != HISTORY_READ:
             return -5, outcome
     _pack_rows(rows, gather, first_step, rate_hz, packed)

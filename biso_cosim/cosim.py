@@ -540,10 +540,11 @@ class CoSimulation:
         MuJoCo's sensor history by the kernel."""
         vehicle, imu = self.vehicle, self.imu
         orders, subs = self._increment_orders, self._subintervals
-        history = (vehicle._history, vehicle._history_layout, t_start, vehicle._warnings, vehicle._rows)
+        history = (vehicle._history, vehicle._history_layout, t_start, vehicle._warnings, vehicle._sensordata,
+                   vehicle._rows)
         if rows is not None:
-            history = (_NO_HISTORY, vehicle._history_layout, 0.0, vehicle._warnings, rows)
-        n = history[4].shape[0]
+            history = (_NO_HISTORY, vehicle._history_layout, 0.0, vehicle._warnings, vehicle._sensordata, rows)
+        n = history[-1].shape[0]
         packed = np.empty((n, Truth.WIDTH))
         views = None
         if self._sensor_buffers is None or self.keep_log:

@@ -225,7 +225,31 @@ def test_a_clock_set_back_does_not_confuse_the_history():
     for sim in (a, b):
         drive(sim, 1.0)
         sim.data.time = 0.5
-    for period in range(3):
+    check_rows_as_mj_step(a, b, periods=3)
+    assert a.periods_with_warnings == 0  # (no warning: the clock)
+
+
+def test_a_state_restored_by_hand_one_period_back_is_stepped_again():
+    """Back by exactly one period (the state restored with mj_setState, not through
+    ``CoSimulation.set_state``): every stamp of the rings is then one MuJoCo already holds,
+    and the rows are still those of plain mj_step calls."""
+    route = circle_route(20.0, 6.0, laps=1)
+    a, b = VehicleSim(route), VehicleSim(route)
+    spec = int(mujoco.mjtState.mjSTATE_INTEGRATION) & ~int(mujoco.mjtState.mjSTATE_HISTORY)  # the rings stay
+    for sim in (a, b):
+        drive(sim, 1.0)
+        saved = np.empty(mujoco.mj_stateSize(sim.model, spec))
+        mujoco.mj_getState(sim.model, sim.data, saved, spec)
+        sensordata = sim.data.sensordata.copy()
+        drive(sim, 1.0 / sim.control_rate_hz)
+        mujoco.mj_setState(sim.model, sim.data, saved, spec)
+        sim.data.sensordata[:] = sensordata
+    check_rows_as_mj_step(a, b, periods=3)
+
+
+def check_rows_as_mj_step(a, b, periods):
+    """``a.step()`` against the same periods stepped one mj_step at a time on ``b``."""
+    for period in range(periods):
         a.drive()
         b.drive()
         truth = a.step()
@@ -235,7 +259,6 @@ def test_a_clock_set_back_does_not_confuse_the_history():
             rows.append(b.data.sensordata.copy())
         np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), b.steps_done).packed)
         b.steps_done += len(rows)
-    assert a.periods_with_warnings == 0  # (no warning: the clock)
 
 
 def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monkeypatch):

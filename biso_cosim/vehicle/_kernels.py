@@ -85,7 +85,7 @@ HISTORY_READ, HISTORY_WARNED, HISTORY_STALE = 0, 1, 2
 
 
 @jit
-def _history_rows(history, layout, n, t_start, warnings, rows):
+def _history_rows(history, layout, n, t_start, warnings, sensordata, rows):
     """The sensordata of the last n steps, which started at time t_start, as rows (n,
     nsensordata) oldest first, from MuJoCo's history buffer. ``layout`` (nsensor, 4): each
     sensor's history address, number of samples, sensordata address and dimension; a
@@ -94,9 +94,10 @@ def _history_rows(history, layout, n, t_start, warnings, rows):
 
     Returns HISTORY_READ, or, with rows unfinished, HISTORY_WARNED after a MuJoCo warning
     (``warnings``, MjData.warning.number, zero before the steps: MuJoCo may reset the data,
-    the history with it) or HISTORY_STALE when the oldest stamp is not t_start (the clock
-    was set back since the rings started: MuJoCo then does not advance them). The warning
-    counters are cleared, as MuJoCo's rollout clears them."""
+    the history with it) or HISTORY_STALE when the rings do not hold these steps: an oldest
+    stamp other than t_start, or a newest row other than the current ``sensordata`` (the
+    clock was set back since the rings started: MuJoCo then does not advance them). The
+    warning counters are cleared, as MuJoCo's rollout clears them."""
     warned = False
     for i in range(warnings.shape[0]):
         if warnings[i] != 0:
@@ -115,6 +116,9 @@ def _history_rows(history, layout, n, t_start, warnings, rows):
             slot = (newest - (n - 1) + j) % nsample
             for c in range(dim):
                 rows[j, col + c] = history[values + slot * dim + c]
+    for c in range(sensordata.shape[0]):  # the last step's values are what MjData holds now
+        if rows[n - 1, c] != sensordata[c]:
+            return HISTORY_STALE
     return HISTORY_READ
 
 

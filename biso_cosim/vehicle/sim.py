@@ -235,7 +235,7 @@ class VehicleSim:
             t_start = d.time
             mujoco.mj_step(m, d, k)
             outcome = _history_rows(self._history, self._history_layout, k, t_start, self._warnings,
-                                    rows[done:done + k])
+                                    self._sensordata, rows[done:done + k])
             if outcome != HISTORY_READ:
                 self._restep(rows, outcome)
                 break
