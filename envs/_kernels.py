@@ -13,8 +13,7 @@ from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
 
 __all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
-           "_route_ahead",
-           "_navigate_period", "_driving_view"]
+           "_route_ahead", "_navigate_period", "_driving_view"]
 
 
 @jit
@@ -128,11 +127,11 @@ def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_in
 
     values (9,) = tilt of the body's up axis (rad), true rear-axle x, y (m) and yaw (rad),
     angle between q_est and the true attitude (rad), forward speed (m/s), the driver's
-    progress and cross-track error (m), the path's length (m). obs = window (ravelled), gnss, q_est,
-    wheel speeds (rate × radius), steering, the pose the route ahead is placed from (nav_pose,
-    or the true pose with use_truth), the route ahead of it (``_route_ahead`` from the
-    nearest point found by ``_locate`` in Path.locate's window around nav_hint). Returns the
-    index of that nearest point (the next call's hint)."""
+    progress and cross-track error (m), the path's length (m). obs = window (ravelled),
+    gnss, q_est, wheel speeds (rate × radius), steering, the pose the route ahead is placed
+    from (nav_pose, or the true pose with use_truth), the route ahead of it
+    (``_route_ahead`` from the nearest point found by ``_locate`` in Path.locate's window
+    around nav_hint). Returns the index of that nearest point (the next call's hint)."""
     w, x, y, z = newest[7], newest[8], newest[9], newest[10]
     values[0] = math.acos(min(max(1.0 - 2.0 * (x * x + y * y), -1.0), 1.0))
     values[1] = sensordata[axle_x]
