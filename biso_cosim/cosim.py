@@ -489,22 +489,17 @@ class CoSimulation:
         if self.magnetic.disturbances:
             return self._sense(self._drive(command))
         self._command(command)
-        stepped = self.vehicle._step_period()  # the rows stay in MuJoCo's sensor history
-        if stepped is None:  # (a period longer than the history)
-            return self._sense_period(*self._drive_rows(command, commanded=True))
+        rows, first, t_start = self.vehicle._step_period()  # rows None: still in MuJoCo's sensor history
         self._period_done(command)
-        t_start, first = stepped
-        return self._sense_period(None, first, t_start)
+        return self._sense_period(rows, first, t_start)
 
     def _drive(self, command: DriverCommand | None = None) -> Truth:
         """Driver (or the given command) and physics for one control period."""
         return self.vehicle._truth(*self._drive_rows(command))
 
-    def _drive_rows(self, command: DriverCommand | None = None, commanded: bool = False) -> tuple[np.ndarray, int]:
-        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``);
-        ``commanded``: ``_command`` has been called already."""
-        if not commanded:
-            self._command(command)
+    def _drive_rows(self, command: DriverCommand | None = None) -> tuple[np.ndarray, int]:
+        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``)."""
+        self._command(command)
         rows = self.vehicle._step_rows()
         self._period_done(command)
         return rows

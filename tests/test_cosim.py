@@ -460,7 +460,7 @@ def test_period_kernel_refuses_bad_rows_as_the_general_path_does(monkeypatch, co
 
     sim.step()
     before = sim.imu.get_state()
-    monkeypatch.setattr(vehicle, "_step_period", lambda: None)  # the rows through _step_rows, poisoned
+    monkeypatch.setattr(vehicle, "_step_period", lambda: (*vehicle._step_rows(), 0.0))  # rows given, poisoned
     monkeypatch.setattr(vehicle, "_step_rows", poisoned)
     with pytest.raises(ValueError, match=message):
         sim.step()

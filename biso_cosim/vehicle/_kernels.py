@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from biso_cosim._numba import jit
-from biso_cosim.routes._kernels import _locate
+from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 
 
 @jit(inline="always")
@@ -77,7 +77,6 @@ STATE_SIZE = 12
  P_WHEELBASE, P_MAX_STEER, P_MASS, P_RADIUS, P_MAX_DRIVE, P_BRAKE_KV, P_MAX_BRAKE, P_DT, P_DECEL, P_ACCEL,
  P_WAIT, P_LENGTH) = range(22)
 PARAMS_SIZE = 22
-_BACK, _AHEAD = 8, 80  # search window of the path locator, samples
 
 
 # _history_rows' outcomes
@@ -141,8 +140,8 @@ def _track(px, py, ps, state, x, y):
     """Progress along the path and cross-track error, never before the last passed stop."""
     n = px.shape[0]
     hint = int(state[S_INDEX])
-    lo = max(hint - _BACK, int(state[S_FLOOR]), 0)
-    hi = min(hint + _AHEAD, n - 1)
+    lo = max(hint - LOCATE_BACK, int(state[S_FLOOR]), 0)
+    hi = min(hint + LOCATE_AHEAD, n - 1)
     i, s, cross = _locate(px, py, ps, x, y, lo, hi)
     state[S_INDEX] = i
     state[S_S] = s

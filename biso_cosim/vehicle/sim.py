@@ -244,22 +244,22 @@ class VehicleSim:
         self.steps_done += n
         return rows, first
 
-    def _step_period(self) -> tuple[float, int] | None:
+    def _step_period(self) -> tuple[np.ndarray | None, int, float]:
         """A control period as one ``mj_step(m, d, n)`` call whose sensordata rows stay in
         the sensors' history for the caller to read (``_history_rows`` into ``_rows``; the
         co-simulation's period kernel does, saving a kernel call), or ``_restep`` when that
-        fails. Returns the time at the period's start and the index of its first step; None,
-        without stepping, when a period is longer than the history (use ``_step_rows``)."""
+        fails. Returns (None, index of the first step, time at the period's start); a period
+        longer than the history is stepped by ``_step_rows`` instead: (its rows, first, 0)."""
         n = self.steps_per_control
         if n > self._history_steps:
-            return None
+            return (*self._step_rows(), 0.0)
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
         t_start = d.time
         mujoco.mj_step(m, d, n)
         first = self.steps_done
         self.steps_done += n
-        return t_start, first
+        return None, first, t_start
 
     def _restep(self, rows: np.ndarray, outcome: int) -> np.ndarray:
         """The rows of the steps since the last period's start, after ``_history_rows`` could
