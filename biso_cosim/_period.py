@@ -1,18 +1,20 @@
 """Jitted glue of a co-simulation period (``biso_cosim.cosim``): from MuJoCo's sensor rows to
-the MPU-9250's samples and the truth at them in one call, where the pieces cost a Python
-call each (and, in the loop, several microseconds each: the physics between periods evicts
-them from the caches)."""
+the MPU-9250's samples and the truth at them, and BISO estimators on the samples, in one
+call, where the pieces cost a Python call each (and, in the loop, several microseconds
+each: the physics between periods evicts them from the caches)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from biso_cosim._numba import jit
+from biso_cosim.estimators.biso import _biso_batch
+from biso_cosim.estimators.biso_plus import _biso_plus_batch
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
 from biso_cosim.vehicle._kernels import HISTORY_READ, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
-__all__ = ["_sense_period", "_sensor_inputs"]
+__all__ = ["_sense_period", "_sense_estimate_period", "_sensor_inputs"]
 
 
 @jit
@@ -76,3 +78,36 @@ def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, 
     for i in range(k):
         flags64[i] = flags[i]
     return -1, k
+
+
+@jit
+def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_w,
+                           before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats,
+                           words, status_bytes, flags, at, wheel_radius_m, odometry, flags64, no_velocity, scratch,
+                           coef_a, state_a, q_a, flags_a, coef_b, state_b, q_b, flags_b,
+                           coef_c, state_c, q_c, flags_c, bias_c):
+    """``_sense_period``, then on its samples up to two BISO estimators (a, b) and one BISO+
+    (c), each given by its ``coef`` and ``state`` arrays (advanced in place; an empty
+    ``coef`` skips it) and writing the first k rows of its outputs ``q``, ``flags`` (and
+    ``bias``). Each runs as its ``update`` does with the co-simulation's inputs: BISO on the
+    sensor's flags as ``imu_flags``, without velocity, ``gyro_step="hold"``
+    (``_biso_batch``, ``scratch`` its scratch space); BISO+ also on the wheel odometry as
+    ``speed_mps`` (``_biso_plus_batch``). They run only when the sensing succeeded (status
+    -1), so a period that is refused or stepped again has changed none of them."""
+    status, k = _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz,
+                              field_w, before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col,
+                              packed, floats, words, status_bytes, flags, at, wheel_radius_m, odometry, flags64)
+    if status != -1:
+        return status, k
+    bound = flags.shape[0]  # the sample columns of ``floats`` (``MPU9250._samples``)
+    gyro = floats[bound:bound + 3 * k].reshape((k, 3))
+    accel = floats[4 * bound:4 * bound + 3 * k].reshape((k, 3))
+    mag = floats[7 * bound:7 * bound + 3 * k].reshape((k, 3))
+    if coef_a.shape[0]:
+        _biso_batch(coef_a, state_a, gyro, accel, mag, flags64[:k], no_velocity, q_a[:k], flags_a[:k], scratch)
+    if coef_b.shape[0]:
+        _biso_batch(coef_b, state_b, gyro, accel, mag, flags64[:k], no_velocity, q_b[:k], flags_b[:k], scratch)
+    if coef_c.shape[0]:
+        _biso_plus_batch(coef_c, state_c, gyro, accel, mag, odometry[:k], flags64[:k], q_c[:k], flags_c[:k],
+                         bias_c[:k])
+    return status, k

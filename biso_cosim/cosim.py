@@ -23,8 +23,10 @@ from typing import Any, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from biso_cosim._period import _sense_period, _sensor_inputs
+from biso_cosim._period import _sense_estimate_period, _sensor_inputs
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
+from biso_cosim.estimators.biso import BisoEstimator
+from biso_cosim.estimators.biso_plus import BisoPlusEstimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
@@ -62,6 +64,26 @@ _WINDOW_S = 1.0
 _LOG_GENERATIONS = itertools.count(1)
 # the period kernel's history argument when the rows are given (``_sense_period``)
 _NO_HISTORY = np.empty(0)
+# The estimators the period kernel can run itself (``CoSimulation._lane``): its slots a, b
+# take BISO estimators, c a BISO+; each slot's arguments are (coef, state, *outputs).
+_LANE_SLOTS = ((BisoEstimator, 0), (BisoEstimator, 1), (BisoPlusEstimator, 2))
+_NO_VELOCITY = np.empty((0, 3))
+_NO_SCRATCH = np.empty((0, 0))
+_NO_LANE = (np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64)) * 2 + (
+    np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0, 3)))
+
+
+def _lane_outputs(bound: int) -> list[tuple[np.ndarray, ...]]:
+    """The period kernel's estimator outputs for up to ``bound`` samples, by slot: (q_wb,
+    flags) for a and b, (q_wb, flags, gyro bias) for c."""
+    def outputs() -> tuple[np.ndarray, np.ndarray]:
+        return np.empty((bound, 4)), np.empty(bound, dtype=np.int64)
+    return [outputs(), outputs(), (*outputs(), np.empty((bound, 3)))]
+
+
+def _lane_estimates(outputs: list[tuple[np.ndarray, ...]], k: int) -> list[Estimate]:
+    """The estimates of the first k samples in the period kernel's estimator outputs, by slot."""
+    return [Estimate(*(a[:k] for a in slot)) for slot in outputs]
 
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
@@ -248,6 +270,14 @@ class CoSimulation:
             est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
             self.estimators[spec.key] = est
         self._wants_odometry = any("speed_mps" in getattr(e, "inputs", ()) for e in self.estimators.values())
+        # the estimators the period kernel runs itself when they can (``_lane``): (key, estimator, slot)
+        self._lane_estimators: tuple[tuple[str, Estimator, int], ...] = ()
+        free = list(_LANE_SLOTS)
+        for key, est in self.estimators.items():
+            slot = next((entry for entry in free if type(est) is entry[0]), None)
+            if slot is not None:
+                free.remove(slot)
+                self._lane_estimators += ((key, est, slot[1]),)
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
         self.gnss_receiver = self._make_receiver(gnss, gnss_rate_hz, physics_rate_hz)
         # what a state must share with this co-simulation to be restored into it
@@ -541,40 +571,69 @@ class CoSimulation:
             history = (_NO_HISTORY, vehicle._history_layout, 0.0, vehicle._warnings, vehicle._sensordata, rows)
         n = history[-1].shape[0]
         packed = np.empty((n, Truth.WIDTH))
-        views = None
         if self._sensor_buffers is None or self.keep_log:
             out = imu._outputs(n, orders, subs)
-            flags64 = np.empty(out[3].shape[0], dtype=np.int64)
+            bound = out[3].shape[0]
+            flags64, lane_out, views = np.empty(bound, dtype=np.int64), None, None
         else:
             if n not in self._sensor_buffers:
                 out = imu._outputs(n, orders, subs)
-                self._sensor_buffers[n] = (out, np.empty(out[3].shape[0], dtype=np.int64), {})
-            out, flags64, views = self._sensor_buffers[n]
-        bound = flags64.shape[0]
+                bound = out[3].shape[0]
+                self._sensor_buffers[n] = (out, np.empty(bound, dtype=np.int64), _lane_outputs(bound), {})
+            out, flags64, lane_out, views = self._sensor_buffers[n]
+            bound = flags64.shape[0]
         at = np.empty((bound, Truth.WIDTH))
         odometry = np.empty(bound if self._wants_odometry else 0)
         before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
-        status, k = _sense_period(*history, vehicle._gather, first_step, vehicle.physics_rate_hz,
-                                  self.magnetic.earth.field_enu_ut, before, *imu._kernel_state(), orders, subs,
-                                  self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
-                                  vehicle.index.wheel_radius_m, odometry, flags64)
+        lane = self._lane()
+        if lane and lane_out is None:
+            lane_out = _lane_outputs(bound)
+        lane_args = list(_NO_LANE)
+        scratch = _NO_SCRATCH
+        for _, est, slot in lane:
+            lane_args[4 * slot:4 * slot + 2 + len(lane_out[slot])] = est._coef, est._state, *lane_out[slot]
+            if slot < 2:
+                scratch = est._scratch
+        status, k = _sense_estimate_period(*history, vehicle._gather, first_step, vehicle.physics_rate_hz,
+                                           self.magnetic.earth.field_enu_ut, before, *imu._kernel_state(), orders,
+                                           subs, self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
+                                           vehicle.index.wheel_radius_m, odometry, flags64, _NO_VELOCITY, scratch,
+                                           *lane_args)
         if status == -5:  # the history did not hold the rows (nothing changed): the period stepped again
             return self._sense_period(vehicle._restep(vehicle._rows, k), first_step)
-        truth = Truth(packed)
+        truth = Truth._of(packed)
         if status >= 0 or status == -3:  # inputs refused, nothing changed: the errors of the general path
             return self._sense(truth)
         if views is None or status != -1:
             samples = imu._samples(status, k, out, orders, subs)  # (raises on status -2)
+            estimates = _lane_estimates(lane_out, k) if lane else None
         elif k in views:
-            samples = views[k]
+            samples, estimates = views[k]
         else:
-            samples = views[k] = imu._samples(status, k, out, orders, subs)
+            samples, estimates = views[k] = imu._samples(status, k, out, orders, subs), _lane_estimates(lane_out, k)
         if status == -4:
             self._truth_at(samples.t_s, truth)  # raises: the sensor and the physics are out of step
-        self._last_truth_row = Truth(packed[-1:])
+        self._last_truth_row = Truth._of(packed[-1:])
         if self._has_gyro_offset:
             self._remove_gyro_offset(samples)
-        return self._estimate(truth, samples, Truth(at[:k]), odometry[:k], flags64[:k])
+        estimated = {key: estimates[slot] for key, _, slot in lane} if lane else None
+        return self._estimate(truth, samples, Truth._of(at[:k]), odometry[:k], flags64[:k], estimated)
+
+    def _lane(self) -> tuple[tuple[str, Estimator, int], ...]:
+        """The estimators the period kernel runs itself this period (``_lane_estimators``:
+        the first two BISO and the first BISO+), when each would take
+        ``Estimator._update_prechecked``'s short path with the kernel's inputs. That is, they
+        have run once through the checks of ``update`` (``_prechecked``), BISO integrates
+        the gyro readings (``gyro_step="hold"``: no increments), and the readings need no
+        offset removed first. The same arithmetic on the same arrays as their own
+        ``update``: the same numbers. Empty when not every one of them can."""
+        lane = self._lane_estimators
+        if self._has_gyro_offset:
+            return ()
+        for _, est, slot in lane:
+            if est._prechecked is None or (slot < 2 and est._params.gyro_step != "hold"):
+                return ()
+        return lane
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
@@ -593,10 +652,12 @@ class CoSimulation:
         return self._estimate(truth, samples, self._truth_at(samples.t_s, truth))
 
     def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None,
-                  imu_flags: np.ndarray | None = None) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+                  imu_flags: np.ndarray | None = None, estimated: Mapping[str, Estimate] | None = None
+                  ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """GNSS, navigators and estimators over the sensor's samples (and the log);
         ``odometry``, ``imu_flags``: the wheel odometry at the samples and their flags as
-        int64, when already at hand."""
+        int64, when already at hand; ``estimated``: the outputs of estimators already run
+        on the samples (the period kernel's, ``_lane``)."""
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
@@ -606,6 +667,9 @@ class CoSimulation:
                 self._nav_log[label].append(navigated)
         outputs = {}
         for key, est in self.estimators.items():
+            if estimated and key in estimated:
+                outputs[key] = estimated[key]
+                continue
             inputs = getattr(est, "inputs", ())
             extra = {}
             if "speed_mps" in inputs:

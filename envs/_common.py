@@ -427,18 +427,19 @@ class CosimEnv(gym.Env):
     def _advance(self, command: DriverCommand | None = None):
         """One control period: returns (samples, truth at the samples, estimator outputs)."""
         samples, truth, outputs = self._sim.step(command)
-        self._window.push(samples)
         if self._gnss is not None:
             self._gnss.push(truth)
         if len(truth):
-            self._newest = truth[-1:]
-        self._on_period(truth, outputs)
+            self._newest = Truth._of(truth.packed[-1:])
+        self._on_period(samples, truth, outputs)
         if self.render_mode == "human":
             self.render()
         return samples, truth, outputs
 
-    def _on_period(self, truth: Truth, outputs: dict) -> None:
-        """What a subclass updates after every control period (nothing by default)."""
+    def _on_period(self, samples: ImuSamples, truth: Truth, outputs: dict) -> None:
+        """What is updated after every control period: the IMU window (a subclass adds its
+        own updates, in one kernel call with the window's)."""
+        self._window.push(samples)
 
     def _first_period(self, command: DriverCommand | None = None):
         """Advance from the reset until the observation holds a sample: one period at the
@@ -522,13 +523,19 @@ class CosimEnv(gym.Env):
             start += size
         return out
 
-    def _sensor_parts(self) -> list[np.ndarray]:
-        """The observation's sensor parts (imu, gnss), flat, in ``observation_structure`` order."""
-        parts = [self._window.values.ravel()]
-        if self._gnss is not None:
-            parts.append(self._gnss.values)
-        return parts
-
-    def _observation_space(self) -> gym.spaces.Box:
+    def _set_observation_space(self) -> None:
+        """The observation space of ``observation_structure``, and the array an observation
+        is a copy of: ``_observation_parts`` are views of it by name (the IMU window and the
+        GNSS part are kept in it; a subclass keeps its own parts there too)."""
         size = sum(int(np.prod(shape)) for shape in self.observation_structure.values())
-        return gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        self._observation_buffer = np.zeros(size)
+        self._observation_parts = self.split_observation(self._observation_buffer)
+        for holder, name in ((self._window, "imu"), (self._gnss, "gnss")):
+            if holder is not None:
+                self._observation_parts[name][:] = holder.values
+                holder.values = self._observation_parts[name]
+
+    def _observation(self) -> np.ndarray:
+        """The observation now: a copy of the array its parts are kept in."""
+        return self._observation_buffer.copy()

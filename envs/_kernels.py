@@ -13,7 +13,8 @@ from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
 
 __all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
-           "_route_ahead", "_navigate_period", "_driving_view"]
+           "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period", "_tuning_period",
+           "_driving_period"]
 
 
 @jit
@@ -116,6 +117,36 @@ def _navigate_period(q, packed, sensordata, steer_index, half_radius_m, dt, pose
     _dead_reckon(q, packed[:, 18:22], speed_scale, dt, pose)
     for j in range(4):
         q_est[j] = q[q.shape[0] - 1, j]
+
+
+@jit
+def _attitude_period(window, gyro, accel, mag, fresh, baseline, baseline_q):
+    """AttitudeEstimation-v0's work after a period of k samples: ``_push_window``, and the
+    newest reference estimate (the last row of ``baseline``) copied into baseline_q (k > 0)."""
+    _push_window(window, gyro, accel, mag, fresh)
+    k = baseline.shape[0]
+    if k:
+        for j in range(4):
+            baseline_q[j] = baseline[k - 1, j]
+
+
+@jit
+def _tuning_period(window, gyro, accel, mag, fresh, tuned, baseline, q_true, tuned_q, baseline_q, errors):
+    """GainTuning-v0's work after a period of k samples: ``_push_window``, and (k > 0)
+    ``_mean_angles_to(tuned, baseline, q_true, tuned_q, baseline_q)`` into errors (2,)."""
+    _push_window(window, gyro, accel, mag, fresh)
+    if tuned.shape[0]:
+        errors[0], errors[1] = _mean_angles_to(tuned, baseline, q_true, tuned_q, baseline_q)
+
+
+@jit
+def _driving_period(window, gyro, accel, mag, fresh, q, packed, sensordata, steer_index, half_radius_m, dt, pose,
+                    q_est):
+    """Driving-v0's work after a period of k samples: ``_push_window``, and (k > 0)
+    ``_navigate_period``."""
+    _push_window(window, gyro, accel, mag, fresh)
+    if q.shape[0]:
+        _navigate_period(q, packed, sensordata, steer_index, half_radius_m, dt, pose, q_est)
 
 
 @jit

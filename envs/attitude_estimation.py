@@ -12,7 +12,7 @@ from gymnasium.utils import EzPickle
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle, _angles_to
+from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_period
 from biso_cosim.frames import quat_from_euler
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
@@ -145,8 +145,10 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             self.action_space = spaces.Box(-high, high, dtype=np.float64)
         if self.observe_baseline:
             self.observation_structure["baseline_q_wb"] = (4,)
-        self.observation_space = self._observation_space()
-        self._baseline_q = np.array([1.0, 0.0, 0.0, 0.0])
+        self._set_observation_space()
+        # the newest reference estimate (in the observation when observed)
+        self._baseline_q = self._observation_parts.get("baseline_q_wb", np.empty(4))
+        self._baseline_q[:] = (1.0, 0.0, 0.0, 0.0)
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -184,20 +186,14 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         return a
 
     # ------------------------------------------------------------------ parts
-    def _on_period(self, truth, outputs) -> None:
-        if len(outputs["baseline"].q_wb):
-            self._baseline_q = outputs["baseline"].q_wb[-1].copy()
+    def _on_period(self, samples, truth, outputs) -> None:
+        _attitude_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh,
+                         outputs["baseline"].q_wb, self._baseline_q)
 
     def _state_info(self) -> dict[str, Any]:
         row = self._newest.packed[0]
         return {"t_s": float(row[0]), "q_wb_true": row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].copy(),
                 "q_wb_baseline": self._baseline_q.copy(), "distance_m": self._sim.vehicle.driver.state.s_m}
-
-    def _observation(self) -> np.ndarray:
-        parts = self._sensor_parts()
-        if self.observe_baseline:
-            parts.append(self._baseline_q)
-        return np.concatenate(parts)
 
 
 finish_docstring(AttitudeEstimationEnv)

@@ -12,7 +12,7 @@ from gymnasium.utils import EzPickle
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _driving_view, _navigate_period
+from biso_cosim.envs._kernels import _driving_period, _driving_view
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
 
@@ -159,7 +159,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float64)
         self.observation_structure.update(q_wb=(4,), wheel_speed_mps=(4,), steering_rad=(1,), pose=(3,),
                                           route_ahead=(self.preview_points, 2))
-        self.observation_space = self._observation_space()
+        self._set_observation_space()
         self._observation_size = self.observation_space.shape[0]
         self._preview_offsets = self.preview_spacing_m * np.arange(1, self.preview_points + 1)
         self._q_est = np.array([1.0, 0.0, 0.0, 0.0])
@@ -222,18 +222,18 @@ class DrivingEnv(CosimEnv, EzPickle):
         p = v.data.sensordata[v.index.rear_axle_pos]
         return float(p[0]), float(p[1])
 
-    def _on_period(self, truth, outputs) -> None:
+    def _on_period(self, samples, truth, outputs) -> None:
         """Dead-reckon the rear axle over the step's samples: the estimator's forward axis,
         projected on the horizontal, times the rear axle's speed (no sideslip there).
 
         The speed comes from the undriven front wheels, as a car's odometry does (the driven
         rear wheels slip under torque): in the bicycle model the rear axle moves at the front
-        wheels' speed times cos(steering angle)."""
-        q = outputs["estimator"].q_wb
-        if len(q):
-            vehicle = self._sim.vehicle
-            _navigate_period(q, truth.packed, vehicle._sensordata, vehicle.index.steering_angle.start,
-                             0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose, self._q_est)
+        wheels' speed times cos(steering angle). (With the IMU window's update: one kernel call.)"""
+        vehicle = self._sim.vehicle
+        _driving_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh,
+                        outputs["estimator"].q_wb, truth.packed, vehicle._sensordata,
+                        vehicle.index.steering_angle.start, 0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz,
+                        self._pose, self._q_est)
 
     # ------------------------------------------------------------------ parts
     def _view(self) -> tuple[dict[str, Any], np.ndarray]:

@@ -15,7 +15,7 @@ from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angles_to, _mean_angles_to
+from biso_cosim.envs._kernels import _angles_to, _tuning_period
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -163,20 +163,28 @@ class GainTuningEnv(CosimEnv, EzPickle):
         specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=specs)
         self.ACTION_NAMES = tuple(self.tuning)
+        # per tuned parameter: name, low, high / low, high − low, whether the scale is logarithmic
+        self._action_map = [(name, low, high / low if scale == "log" else math.nan, high - low, scale == "log")
+                            for name, (low, high, scale) in self.tuning.items()]
         m = len(self.tuning)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float64)
         self.observation_structure.update(q_wb=(4,), gains=(m,))
-        self.observation_space = self._observation_space()
+        self._set_observation_space()
         baseline = self._sim.estimators["baseline"].params
+        self._reading = getattr(baseline, "reading", None)  # BISO's (fixed by estimator_params)
         # what reset restores in the tuned copy: the baseline's own values of what the action sets
         names = ("k", "k_p", "cutoff_hz") if CROSS_LINK_RATIO in self.tuning else tuple(self.tuning)
         self._initial = {name: getattr(baseline, name) for name in names}
         self._initial_gains = self._normalise(self._tuned_values(baseline))
         self._check_corners(fixed)
-        self._gains = self._initial_gains.copy()
-        self._tuned_q = np.array([1.0, 0.0, 0.0, 0.0])
+        # the gains in force (normalised) and the tuned copy's newest estimate: in the observation
+        self._gains, self._tuned_q = self._observation_parts["gains"], self._observation_parts["q_wb"]
+        self._gains[:] = self._initial_gains
+        self._tuned_q[:] = (1.0, 0.0, 0.0, 0.0)
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
         self._baseline_q = self._tuned_q.copy()
+        self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
+        self._period_samples = 0
 
     def _tuned_values(self, params: Any, gains: dict[str, Any] | None = None) -> dict[str, float]:
         """The tuned parameters' values in an estimator's parameter record (``gains``: its
@@ -208,12 +216,11 @@ class GainTuningEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ conversions
     def params_from_action(self, action: Any) -> dict[str, float]:
         """The physical parameter values a normalised action stands for."""
-        a = np.asarray(action, dtype=np.float64)
-        out = {}
-        for (name, (low, high, scale)), x in zip(self.tuning.items(), a.tolist()):
-            u = 0.5 * (x + 1.0)
-            out[name] = low * (high / low) ** u if scale == "log" else low + u * (high - low)
-        return out
+        return self._values(np.asarray(action, dtype=float).tolist())
+
+    def _values(self, action: list[float]) -> dict[str, float]:
+        return {name: low * ratio ** (0.5 * (x + 1.0)) if log else low + 0.5 * (x + 1.0) * span
+                for (name, low, ratio, span, log), x in zip(self._action_map, action)}
 
     def action_from_params(self, **values: float) -> np.ndarray:
         """The normalised action that sets ``values`` (every tuned parameter, within its range)."""
@@ -237,7 +244,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         changes = dict(values)
         if CROSS_LINK_RATIO in changes:
             ratio = changes.pop(CROSS_LINK_RATIO)
-            k, kp = gains_from_cutoff(changes.pop("cutoff_hz"), self._sim.estimators["tuned"].params.reading)
+            k, kp = gains_from_cutoff(changes.pop("cutoff_hz"), self._reading)
             changes.update(k=k, k_p=ratio * kp, cutoff_hz=None)
         return changes
 
@@ -245,9 +252,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
         self._sim.estimators["tuned"].set_params(**self._initial)  # Estimator.reset keeps parameters
-        self._gains = self._initial_gains.copy()
-        _, truth, outputs = self._first_period()
-        info.update(self._measure(truth, outputs))
+        self._gains[:] = self._initial_gains
+        self._first_period()
+        info.update(self._measure())
         info["params"] = self._params_in_force()
         return self._observation(), info
 
@@ -255,10 +262,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._require_running()
         a = self._check_action(action)
         if a.tolist() != self._gains.tolist():  # (lists: np.array_equal costs tens of µs in the loop)
-            self._sim.estimators["tuned"].set_params(**self._changes(self.params_from_action(a)))
-            self._gains = a
-        _, truth, outputs = self._advance()
-        info = self._measure(truth, outputs)
+            self._set_gains(a)
+        self._advance()
+        info = self._measure()
         info["params"] = self._params_in_force()
         reward = -info["error_rad"]
         info["reward_attitude"] = reward
@@ -267,10 +273,23 @@ class GainTuningEnv(CosimEnv, EzPickle):
         return self._observation(), reward, False, truncated, info
 
     # ------------------------------------------------------------------ parts
+    def _set_gains(self, a: np.ndarray) -> None:
+        """Set the tuned copy's parameters from a checked action. The values in force are
+        then the values the action stands for (with the cross-link ratio also the k and k_p
+        derived from them), recorded with the parameter record they made."""
+        values = self._values(a.tolist())
+        changes = self._changes(values)
+        tuned = self._sim.estimators["tuned"]
+        tuned.set_params(**changes)
+        if "k" in changes:
+            values.update(k=changes["k"], k_p=changes["k_p"])
+        self._in_force = (tuned._params, values)
+        self._gains[:] = a
+
     def _params_in_force(self) -> dict[str, float]:
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
         params = self._sim.estimators["tuned"].params
-        if params is not self._in_force[0]:  # (steps that keep the gains reuse the values)
+        if params is not self._in_force[0]:  # (after reset; steps record what they set, ``_set_gains``)
             gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
             values = self._tuned_values(params, gains)
             if CROSS_LINK_RATIO in self.tuning:
@@ -278,21 +297,25 @@ class GainTuningEnv(CosimEnv, EzPickle):
             self._in_force = (params, values)
         return dict(self._in_force[1])
 
-    def _measure(self, truth, outputs) -> dict[str, Any]:
-        """Mean errors of both copies over the step's samples, and the state at the newest."""
-        tuned, baseline = outputs["tuned"].q_wb, outputs["baseline"].q_wb
+    def _on_period(self, samples, truth, outputs) -> None:
+        """The IMU window, and the mean errors of both copies over the period's samples with
+        their newest estimates (``_measure``'s): one kernel call."""
+        tuned = outputs["tuned"].q_wb
+        self._period_samples = tuned.shape[0]
+        _tuning_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, tuned,
+                       outputs["baseline"].q_wb, truth.q_wb, self._tuned_q, self._baseline_q, self._errors)
+
+    def _measure(self) -> dict[str, Any]:
+        """Mean errors of both copies over the last period's samples, and the state at the newest."""
         newest = self._newest.packed[0]
         q_true = newest[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4]
-        if len(tuned):
-            error, baseline_error = _mean_angles_to(tuned, baseline, truth.q_wb, self._tuned_q, self._baseline_q)
+        if self._period_samples:
+            error, baseline_error = self._errors.tolist()
         else:  # no sample this step (ODR below the control rate): the newest estimate stands
             error, baseline_error = _angles_to(self._tuned_q, self._baseline_q, q_true)
         return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(newest[0]),
                 "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(),
                 "q_wb_baseline": self._baseline_q.copy()}
-
-    def _observation(self) -> np.ndarray:
-        return np.concatenate([*self._sensor_parts(), self._tuned_q, self._gains])
 
 
 # BISO's gains for a design frequency of 1 Hz, by reading (``gains_from_cutoff``)

@@ -383,19 +383,23 @@ def _assert_same_samples(a, b):
     assert np.array_equal(a.raw.words, b.raw.words) and np.array_equal(a.raw.status, b.raw.status)
 
 
-@pytest.mark.parametrize("options", [
-    {},
-    {"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
-     "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}), "gnss_kalman")},
+@pytest.mark.parametrize("options, lane", [
+    ({}, ["biso", "biso_plus", "poisson"]),  # (poisson is BISO without correction)
+    ({"estimators": ("biso", ("biso", {"cutoff_hz": 2.0}, "second"), "biso_plus", ("biso", {}, "third"), "dcm_pi")},
+     ["biso", "second", "biso_plus"]),
+    ({"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
+      "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")}, []),
 ])
 @pytest.mark.parametrize("reuse", [False, True])
-def test_period_kernel_equals_the_general_path(options, reuse):
+def test_period_kernel_equals_the_general_path(options, lane, reuse):
     """step() senses a period by one kernel (truth packing, sensor inputs, MPU-9250, truth at
-    the samples): the same numbers, bit for bit, as the general path of run()'s blocks; also
-    when, as for the environments, every period's samples are written into the same arrays."""
+    the samples, and the estimators of its lane: two BISO and a BISO+): the same numbers, bit
+    for bit, as the general path of run()'s blocks; also when, as for the environments,
+    every period's samples and estimates are written into the same arrays. The lane is
+    empty when an estimator in it needs increments, or the readings an offset removed."""
     opts = dict(options)
     estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
-    specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label="biso_coning") for e in estimators]
+    specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label=e[2]) for e in estimators]
     fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, keep_log=not reuse, **opts)
     if reuse:
         fused._sensor_buffers = {}
@@ -405,8 +409,15 @@ def test_period_kernel_equals_the_general_path(options, reuse):
         want_samples, want_truth, want_outputs = general._sense(general._drive())
         _assert_same_samples(samples, want_samples)
         assert np.array_equal(truth.packed, want_truth.packed)
+        assert list(outputs) == list(want_outputs)
         for key, out in outputs.items():
-            assert np.array_equal(out.q_wb, want_outputs[key].q_wb) and np.array_equal(out.flags, want_outputs[key].flags)
+            want = want_outputs[key]
+            assert np.array_equal(out.q_wb, want.q_wb) and np.array_equal(out.flags, want.flags), key
+            assert (out.gyro_bias_b is None) == (want.gyro_bias_b is None), key
+            assert out.gyro_bias_b is None or np.array_equal(out.gyro_bias_b, want.gyro_bias_b), key
+    assert [key for key, _, _ in fused._lane()] == lane
+    for key, est in fused.estimators.items():
+        assert np.array_equal(est.get_state().values, general.estimators[key].get_state().values), key
     if reuse:
         assert samples.gyro_b.base is not None and len(fused._sensor_buffers) == 1  # views of the one set of arrays
     else:

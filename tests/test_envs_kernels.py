@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from biso_cosim.envs._kernels import (_angle, _angles_to, _dead_reckon, _driving_view, _mean_angle, _mean_angles_to,
-                                      _navigate_period, _push_window, _route_ahead)
+from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _driving_period,
+                                      _driving_view, _mean_angle, _mean_angles_to, _navigate_period, _push_window,
+                                      _route_ahead, _tuning_period)
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
@@ -86,6 +87,49 @@ def test_navigate_period_is_dead_reckoning_with_the_rear_axle_speed():
     _navigate_period(q, packed, sensordata, 29, 0.5 * 0.316, 0.005, pose, q_est)
     _dead_reckon(q, packed[:, 18:22], 0.5 * 0.316 * math.cos(sensordata[29]), 0.005, expected)
     assert pose.tolist() == expected.tolist() and q_est.tolist() == q[-1].tolist()
+
+
+@pytest.mark.parametrize("k", [0, 3, 6])
+def test_period_kernels_are_the_window_and_each_environments_parts(k):
+    """Each environment's work after a period in one call: ``_push_window`` and the kernel of
+    its own update (nothing but the window when the period has no samples), bit for bit."""
+    rng = np.random.default_rng(k)
+    gyro, accel, mag = rng.normal(size=(3, k, 3))
+    fresh = rng.random(k) < 0.5
+    q1, q2, q_true = rng.normal(size=(3, k, 4))
+
+    def windows():
+        """A window, and what ``_push_window`` makes of it."""
+        window = rng.normal(size=(4, 11))
+        want = window.copy()
+        _push_window(want, gyro, accel, mag, fresh)
+        return window, want
+
+    window, want_window = windows()
+    newest, want_newest = np.full(4, 7.0), np.full(4, 7.0)
+    _attitude_period(window, gyro, accel, mag, fresh, q1, newest)
+    if k:
+        want_newest = q1[-1]
+    assert window.tolist() == want_window.tolist() and newest.tolist() == want_newest.tolist()
+
+    window, want_window = windows()
+    got, want = np.full((2, 4), 7.0), np.full((2, 4), 7.0)
+    errors, want_errors = np.full(2, 9.0), [9.0, 9.0]
+    _tuning_period(window, gyro, accel, mag, fresh, q1, q2, q_true, got[0], got[1], errors)
+    if k:
+        want_errors = list(_mean_angles_to(q1, q2, q_true, want[0], want[1]))
+    assert window.tolist() == want_window.tolist()
+    assert got.tolist() == want.tolist() and errors.tolist() == want_errors
+
+    window, want_window = windows()
+    packed, sensordata = rng.normal(size=(20, 23)), rng.normal(size=30)
+    pose, want_pose = np.array([3.0, -1.0, 0.2]), np.array([3.0, -1.0, 0.2])
+    q_est, want_q_est = np.full(4, 7.0), np.full(4, 7.0)
+    _driving_period(window, gyro, accel, mag, fresh, q1, packed, sensordata, 29, 0.158, 0.005, pose, q_est)
+    if k:
+        _navigate_period(q1, packed, sensordata, 29, 0.158, 0.005, want_pose, want_q_est)
+    assert window.tolist() == want_window.tolist()
+    assert pose.tolist() == want_pose.tolist() and q_est.tolist() == want_q_est.tolist()
 
 
 @pytest.mark.parametrize("use_truth", [False, True])

@@ -2,6 +2,7 @@
 co-simulation's own sample stream (bit for bit), the tuned estimator against a standalone one,
 dead reckoning against a plain reference, and the procedural routes."""
 
+import copy
 import math
 
 import gymnasium as gym
@@ -23,10 +24,17 @@ SHORT = {"episode_duration_s": 1.5}
 
 def capture_periods(core) -> list:
     """The co-simulation's outputs (samples, truth, estimates) of every period from now on:
-    an environment keeps no log."""
+    an environment keeps no log (and its co-simulation writes every period's samples and
+    estimates into the same arrays: copies are kept)."""
     periods = []
     sim_step = core.sim.step
-    core.sim.step = lambda command=None: periods.append(sim_step(command)) or periods[-1]
+
+    def step(command=None):
+        out = sim_step(command)
+        periods.append(copy.deepcopy(out))
+        return out
+
+    core.sim.step = step
     return periods
 
 
@@ -200,7 +208,8 @@ def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
         imu = core.split_observation(obs)["imu"]
         q = standalone.update(imu[:, 0:3], imu[:, 3:6], imu[:, 6:9]).q_wb
         np.testing.assert_array_equal(info["q_wb_tuned"], q[-1])
-        assert info["params"]["k"] == k and info["params"]["k_p"] == values[CROSS_LINK_RATIO] * kp
+        assert info["params"] == {**values, "k": k, "k_p": values[CROSS_LINK_RATIO] * kp}  # what the action set
+        assert core.sim.estimators["tuned"].params.k == k
         step += 1
         if truncated:
             break

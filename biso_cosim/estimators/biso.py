@@ -401,13 +401,14 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
 
 
 _GAIN_NAMES = frozenset({"k", "k_p", "cutoff_hz"})
+_PATTERN_12 = _PATTERNS[12]  # the closed-form correction's pattern (``_with_closed_gains``)
 
 
-def _with_closed_gains(coef: np.ndarray, params: BisoParams, gains: tuple) -> np.ndarray:
-    """A copy of closed-mode coefficients ``coef`` with the equal gains ``gains`` of ``params``
+def _with_closed_gains(coef: np.ndarray, params: BisoParams, k: float, kp: float) -> np.ndarray:
+    """A copy of closed-mode coefficients ``coef`` with the equal gains k, k_p of ``params``
     (the entries ``biso_coefficients`` derives from the gains, by its expressions)."""
     c = coef.copy()
-    _set_closed_gains(c, gains[0][0], gains[1][0], 0.5 if params.reading == "L" else 1.0, _PATTERNS[12], _T_GOST)
+    _set_closed_gains(c, k, kp, 0.5 if params.reading == "L" else 1.0, _PATTERN_12, _T_GOST)
     return c
 
 
@@ -723,19 +724,16 @@ class BisoEstimator(Estimator):
         only the coefficients that depend on the gains are derived again, by the same
         expressions as ``biso_coefficients`` (the same numbers; tested)."""
         if changes.keys() <= _GAIN_NAMES and self._coef[_C_MODE] == MODE_CLOSED:
-            params = object.__new__(BisoParams)  # a frozen record: the copy is set field by field
-            params.__dict__.update(self._params.__dict__)
-            for name, value in changes.items():
-                object.__setattr__(params, name, value)
+            params = object.__new__(BisoParams)  # a frozen record: the copy's fields are set in its __dict__
+            params.__dict__.update(self._params.__dict__, **changes)
             k, kp = params.k, params.k_p
             if (params.cutoff_hz is None and type(k) is float and type(kp) is float and 0.0 < k < math.inf
                     and 0.0 <= kp < math.inf):  # two valid scalars, checked in one expression
-                gains = ((k,) * 4, (kp,) * 4)
-            else:
-                gains = _resolved_gains(params)  # validates them (the messages of the full path)
-            k, kp = gains
+                self._params, self._coef = params, _with_closed_gains(self._coef, params, k, kp)
+                return
+            k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
             if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
-                self._params, self._coef = params, _with_closed_gains(self._coef, params, gains)
+                self._params, self._coef = params, _with_closed_gains(self._coef, params, k[0], kp[0])
                 return
         super().set_params(**changes)
 
