@@ -1,7 +1,7 @@
 """Jitted glue of a co-simulation period (``biso_cosim.cosim``): from MuJoCo's sensor rows to
-the MPU-9250's samples and the truth at them, and BISO estimators on the samples, in one
-call, where the pieces cost a Python call each (and, in the loop, several microseconds
-each: the physics between periods evicts them from the caches)."""
+the MPU-9250's samples and the truth at them, and BISO and BISO+ estimators on the samples,
+in one call, where the pieces cost a Python call each (and, in the loop, several
+microseconds each: the physics between periods evicts them from the caches)."""
 
 from __future__ import annotations
 

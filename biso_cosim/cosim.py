@@ -73,17 +73,19 @@ _NO_LANE = (np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int
     np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0, 3)))
 
 
-def _lane_outputs(bound: int) -> list[tuple[np.ndarray, ...]]:
-    """The period kernel's estimator outputs for up to ``bound`` samples, by slot: (q_wb,
-    flags) for a and b, (q_wb, flags, gyro bias) for c."""
-    def outputs() -> tuple[np.ndarray, np.ndarray]:
-        return np.empty((bound, 4)), np.empty(bound, dtype=np.int64)
-    return [outputs(), outputs(), (*outputs(), np.empty((bound, 3)))]
+def _lane_outputs(bound: int, slots: Iterable[int] = (0, 1, 2)) -> list[tuple[np.ndarray, ...] | None]:
+    """The period kernel's estimator outputs for up to ``bound`` samples, by slot (None for
+    a slot not in ``slots``): (q_wb, flags) for a and b, (q_wb, flags, gyro bias) for c."""
+    out: list[tuple[np.ndarray, ...] | None] = [None, None, None]
+    for slot in slots:
+        bias = (np.empty((bound, 3)),) if slot == 2 else ()
+        out[slot] = (np.empty((bound, 4)), np.empty(bound, dtype=np.int64), *bias)
+    return out
 
 
-def _lane_estimates(outputs: list[tuple[np.ndarray, ...]], k: int) -> list[Estimate]:
+def _lane_estimates(outputs: list[tuple[np.ndarray, ...] | None], k: int) -> list[Estimate | None]:
     """The estimates of the first k samples in the period kernel's estimator outputs, by slot."""
-    return [Estimate(*(a[:k] for a in slot)) for slot in outputs]
+    return [None if slot is None else Estimate(*(a[:k] for a in slot)) for slot in outputs]
 
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
@@ -287,6 +289,9 @@ class CoSimulation:
                                [(s.key, s.name, sorted((k, repr(v)) for k, v in s.params.items())) for s in self.specs],
                                sorted(navigators) if not isinstance(navigators, str) else navigators))
         self._setup_navigators(navigators)
+        # the period kernel's outputs are all there is to a period (``_estimate``)
+        self._lane_only = (len(self._lane_estimators) == len(self.estimators) and self.gnss_receiver is None
+                           and not self.navigator_params and not self.keep_log)
         self._calibrate_gyro()
         self._reset_navigators()
         self._reset_logs()
@@ -586,8 +591,8 @@ class CoSimulation:
         odometry = np.empty(bound if self._wants_odometry else 0)
         before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
         lane = self._lane()
-        if lane and lane_out is None:
-            lane_out = _lane_outputs(bound)
+        if lane and lane_out is None:  # (a log keeps them: new arrays every period)
+            lane_out = _lane_outputs(bound, [slot for _, _, slot in lane])
         lane_args = list(_NO_LANE)
         scratch = _NO_SCRATCH
         for _, est, slot in lane:
@@ -658,6 +663,8 @@ class CoSimulation:
         ``odometry``, ``imu_flags``: the wheel odometry at the samples and their flags as
         int64, when already at hand; ``estimated``: the outputs of estimators already run
         on the samples (the period kernel's, ``_lane``)."""
+        if estimated is not None and self._lane_only:  # every estimator has run, and nothing else is due
+            return samples, at_samples, estimated
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)

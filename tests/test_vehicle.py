@@ -8,6 +8,7 @@ import pytest
 
 from biso_cosim.frames import euler_from_quat, quat_rotate
 from biso_cosim.routes import parse_route
+from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.model import CarIndex, build_model, car_spec, vehicle_parameters
 from biso_cosim.vehicle.sim import Truth, VehicleSim
 from biso_cosim.vehicle.terrain import Bank, Hill, Ridge, Terrain
@@ -175,6 +176,21 @@ def test_chunked_stepping_is_deterministic_and_time_stamped():
     assert ta.t_s[0] == 0.0
     a.reset()
     np.testing.assert_array_equal(drive(a, 3.0).specific_force_b, ta.specific_force_b)
+
+
+def test_observe_route_tracks_the_rear_axle_as_the_driver_does():
+    """An agent drives (here a constant left turn): the progress and cross-track error that
+    ``observe_route`` records are the driver's ``track`` at the rear axle."""
+    route = circle_route(20.0, 6.0, laps=1)
+    observed, tracked = VehicleSim(route), VehicleSim(route)
+    for _ in range(100):  # 2 s
+        for car in (observed, tracked):
+            car.apply(DriverCommand(steer_rad=0.2, drive=0.4, brake=0.0))
+            car.step()
+        observed.observe_route()
+        tracked.driver.track(tracked.data.sensordata[tracked.index.rear_axle_pos][:2].tolist())
+        assert observed.driver.state.array.tolist() == tracked.driver.state.array.tolist()
+    assert observed.driver.state.s_m > 3.0 and observed.driver.state.cross_track_m != 0.0
 
 
 def test_a_control_period_from_the_sensor_history_equals_mj_step_calls_bit_for_bit():

@@ -149,6 +149,12 @@ def _track(px, py, ps, state, x, y):
 
 
 @jit
+def _track_axle(px, py, ps, state, sensordata, axle_x):
+    """``_track`` at the rear axle's position in MuJoCo's ``sensordata`` (x, y at ``axle_x``)."""
+    _track(px, py, ps, state, sensordata[axle_x], sensordata[axle_x + 1])
+
+
+@jit
 def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
                   sensordata, layout, ctrl, actuators, out):
     """A control period of the scripted driver from MuJoCo's ``sensordata`` straight into
@@ -165,10 +171,17 @@ def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, s
     _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
                     sensordata[layout[1]], sensordata[layout[1] + 1], yaw, sensordata[layout[2]],
                     wheels / layout[4], out)
-    ctrl[actuators[0]] = out[0]
-    ctrl[actuators[1]] = out[1]
+    _apply_controls(ctrl, actuators, out[0], out[1], out[2])
+
+
+@jit
+def _apply_controls(ctrl, actuators, steer_rad, drive, brake):
+    """A command into MuJoCo's ``ctrl``; ``actuators``: the ctrl indices of steering, drive,
+    then the brakes (each wheel's brake takes the same command)."""
+    ctrl[actuators[0]] = steer_rad
+    ctrl[actuators[1]] = drive
     for j in range(2, actuators.shape[0]):
-        ctrl[actuators[j]] = out[2]
+        ctrl[actuators[j]] = brake
 
 
 @jit

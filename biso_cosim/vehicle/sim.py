@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 
 from biso_cosim.frames import _q_from_euler
-from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, _drive_period, _history_rows,
-                                         _interpolate_rows, _pack_rows)
+from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, _apply_controls, _drive_period,
+                                         _history_rows, _interpolate_rows, _pack_rows, _track_axle)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -141,7 +141,6 @@ class VehicleSim:
         self._history, self._warnings = self.data.history, self.data.warning.number
         self._ctrl, self._sensordata = self.data.ctrl, self.data.sensordata
         ix = self.index
-        self._brake_ids = ix.brakes.tolist()
         self._actuators = np.array([ix.steer, ix.drive, *ix.brakes], dtype=np.int64)
         self._sensor_layout = np.array([ix.quat.start, ix.rear_axle_pos.start, ix.rear_axle_vel_b.start,
                                         ix.wheel_rates.start, ix.wheel_rates.stop - ix.wheel_rates.start], dtype=np.int64)
@@ -187,11 +186,7 @@ class VehicleSim:
 
     # ------------------------------------------------------------------ stepping
     def apply(self, command: DriverCommand) -> None:
-        ctrl, ix = self._ctrl, self.index
-        ctrl[ix.steer] = command.steer_rad
-        ctrl[ix.drive] = command.drive
-        for i in self._brake_ids:  # scalar stores: cheaper than an index-array store every period
-            ctrl[i] = command.brake
+        _apply_controls(self._ctrl, self._actuators, command.steer_rad, command.drive, command.brake)
 
     def _measure(self) -> tuple[list[float], float, float, float]:
         """What the driver measures, as plain floats: rear-axle position, yaw, forward speed,
@@ -221,8 +216,8 @@ class VehicleSim:
 
     def observe_route(self) -> None:
         """Update the driver's progress and cross-track error without driving (an agent drives)."""
-        sd, i = self._sensordata, self._axle_x
-        self.driver.track((float(sd[i]), float(sd[i + 1])))
+        driver = self.driver  # (driver.track at the axle, in one kernel call)
+        _track_axle(*driver._arrays[:3], driver.state.array, self._sensordata, self._axle_x)
 
     def step(self, n: int | None = None) -> Truth:
         """Advance ``n`` physics steps (default: one control period) with the controls held;
