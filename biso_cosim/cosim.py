@@ -246,9 +246,10 @@ class CoSimulation:
         if not isinstance(keep_log, bool):
             raise TypeError(f"keep_log must be True or False, got {keep_log!r}")
         self.keep_log = keep_log
-        # {} from a caller that is done with each step's samples before the next step (the
-        # environments): without a log the sensor then writes every period's samples into the
-        # same arrays (n input rows -> (outputs, int64 flags, {k: ImuSamples of their first k rows})).
+        # {} from a caller that is done with each step's samples and estimates before the next
+        # step (the environments): without a log the sensor and the period kernel's estimators
+        # then write every period into the same arrays (n input rows -> (sensor outputs, int64
+        # flags, estimator outputs by slot, {k: (ImuSamples, estimates by slot) of the first k rows})).
         self._sensor_buffers: dict[int, tuple] | None = None
         self.duration_s = float(duration_s)
         self.seed = int(seed)
@@ -563,9 +564,10 @@ class CoSimulation:
     def _sense_period(self, rows: np.ndarray | None, first_step: int, t_start: float = 0.0
                       ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """``_sense`` of one period's MuJoCo sensor rows, with the truth packing, the sensor's
-        inputs, the sensor, the truth at its samples and the wheel odometry there in one
-        kernel call (``_period``): the same numbers as ``_sense(vehicle._truth(rows,
-        first_step))``, tested; the Earth's field alone (no local disturbances). ``rows``
+        inputs, the sensor, the truth at its samples, the wheel odometry there and the
+        estimators of ``_lane`` in one kernel call (``_period``): the same numbers as
+        ``_sense(vehicle._truth(rows, first_step))``, tested; the Earth's field alone (no
+        local disturbances). ``rows``
         None: the rows of ``VehicleSim._step_period``, begun at ``t_start``, read from
         MuJoCo's sensor history by the kernel."""
         vehicle, imu = self.vehicle, self.imu

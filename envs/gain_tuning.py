@@ -186,12 +186,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
         self._period_samples = 0
 
-    def _tuned_values(self, params: Any, gains: dict[str, Any] | None = None) -> dict[str, float]:
-        """The tuned parameters' values in an estimator's parameter record (``gains``: its
-        ``_biso_gains_of`` when already at hand)."""
+    def _tuned_values(self, params: Any) -> dict[str, float]:
+        """The tuned parameters' values in an estimator's parameter record."""
         values = {}
-        if gains is None:
-            gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
+        gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
         for name in self.tuning:
             if name in gains:
                 value = gains[name]
@@ -219,6 +217,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         return self._values(np.asarray(action, dtype=float).tolist())
 
     def _values(self, action: list[float]) -> dict[str, float]:
+        """``params_from_action`` of an action already a list of floats."""
         return {name: low * ratio ** (0.5 * (x + 1.0)) if log else low + 0.5 * (x + 1.0) * span
                 for (name, low, ratio, span, log), x in zip(self._action_map, action)}
 
@@ -290,9 +289,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
         params = self._sim.estimators["tuned"].params
         if params is not self._in_force[0]:  # (after reset; steps record what they set, ``_set_gains``)
-            gains = _biso_gains_of(params) if isinstance(params, BisoParams) else {}
-            values = self._tuned_values(params, gains)
+            values = self._tuned_values(params)
             if CROSS_LINK_RATIO in self.tuning:
+                gains = _biso_gains_of(params)
                 values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
             self._in_force = (params, values)
         return dict(self._in_force[1])
@@ -318,10 +317,6 @@ class GainTuningEnv(CosimEnv, EzPickle):
                 "q_wb_baseline": self._baseline_q.copy()}
 
 
-# BISO's gains for a design frequency of 1 Hz, by reading (``gains_from_cutoff``)
-_UNIT_GAINS = {reading: gains_from_cutoff(1.0, reading) for reading in ("D", "L")}
-
-
 def _biso_gains_of(params: Any) -> dict[str, Any]:
     """The gains a BISO parameter record resolves to: k, k_p (the paper's when None), and the
     design frequency f_c and cross-link ratio r they correspond to (per-channel gains: None)."""
@@ -332,7 +327,7 @@ def _biso_gains_of(params: Any) -> dict[str, Any]:
     kp = PAPER_K_P if params.k_p is None else params.k_p
     if not isinstance(k, (int, float)) or not isinstance(kp, (int, float)):
         return {"k": k, "k_p": kp, "cutoff_hz": None, CROSS_LINK_RATIO: None}
-    k1, kp1 = _UNIT_GAINS[params.reading]  # gains are proportional to f_c
+    k1, kp1 = gains_from_cutoff(1.0, params.reading)  # gains are proportional to f_c
     cutoff = k / k1
     return {"k": k, "k_p": kp, "cutoff_hz": cutoff, CROSS_LINK_RATIO: kp / (kp1 * cutoff) if cutoff > 0.0 else None}
 
