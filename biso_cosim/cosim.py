@@ -88,6 +88,73 @@ def _lane_estimates(outputs: list[tuple[np.ndarray, ...] | None], k: int) -> lis
     return [None if slot is None else Estimate(*(a[:k] for a in slot)) for slot in outputs]
 
 
+def _buffer_view(views: dict, k: int, out: tuple, increments: int, subintervals: int,
+                 lane_out: list) -> tuple[ImuSamples, list[Estimate | None]]:
+    """The samples and the lane's estimates in the first k rows of reused outputs (status
+    -1; ``_sensor_buffers``), made once for each k."""
+    view = views.get(k)
+    if view is None:
+        view = views[k] = (MPU9250._samples(-1, k, out, increments, subintervals), _lane_estimates(lane_out, k))
+    return view
+
+
+# Positions in the period kernel's arguments as ``_sense_period`` lists them (``_PeriodPlan``).
+_ARG_T_START, _ARG_FIRST_STEP, _ARG_BEFORE, _ARG_PACKED, _ARG_OUT, _ARG_AT, _ARG_ODOMETRY, _ARG_FLAGS = (
+    2, 7, 10, 20, 21, 25, 27, 28)
+
+
+class _PeriodPlan:
+    """The period kernel's arguments, gathered once for the periods that follow while they
+    hold: for a co-simulation whose caller consumes each period's outputs within the period
+    (``_sensor_buffers``) and whose estimators all run in the kernel (``_lane_only``).
+
+    Every array in them stays the same object while the simulation runs on, except those
+    ``after`` checks: the sensor's parameters and state, the estimators' coefficients and
+    states (a reset, a restored state or a change of parameters replaces them; BISO's
+    change of equal gains writes its coefficients in place). Two variants alternate: each
+    writes the truth rows into its own array and reads the newest row of the other's as
+    the row before the period. Which one is next is told by the identity of
+    ``_last_truth_row``; after a reset or a restored state (None, or a new row) none is,
+    and the general path plans again."""
+
+    def __init__(self, sim: "CoSimulation", args: list, lane: tuple, lane_out: list, views: dict):
+        imu = sim.imu
+        self._sources = ((imu, "_cp", imu._cp), (imu, "_cs", imu._cs), (imu, "_chs", imu._chs),
+                         *((est, name, getattr(est, name)) for _, est, _ in lane for name in ("_coef", "_state")))
+        first = args[_ARG_PACKED]
+        second = np.empty_like(first)
+        self.first_row, second_row = Truth._of(first[-1:]), Truth._of(second[-1:])
+        reads_second, reads_first = list(args), list(args)
+        reads_second[_ARG_BEFORE] = second_row.packed
+        reads_first[_ARG_BEFORE], reads_first[_ARG_PACKED] = self.first_row.packed, second
+        self._next = {self.first_row: (reads_first, second_row), second_row: (reads_second, self.first_row)}
+        self._buffers = (views, tuple(args[_ARG_OUT:_ARG_OUT + 4]), sim._increment_orders, sim._subintervals,
+                         args[_ARG_AT], lane_out)
+        self._slots = tuple((key, slot) for key, _, slot in lane)
+        self._views: dict[int, tuple] = {}
+
+    def after(self, last_row: Truth | None) -> tuple[list, Truth] | None:
+        """The arguments for the period after the one whose newest truth row is ``last_row``
+        and the newest row they leave, or None when the plan no longer holds."""
+        variant = self._next.get(last_row)
+        if variant is None:
+            return None
+        for owner, name, value in self._sources:
+            if getattr(owner, name) is not value:
+                return None
+        return variant
+
+    def view(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """What a period of k samples returns: the samples, the truth at them, the estimates
+        (views of the reused arrays, made once for each k)."""
+        view = self._views.get(k)
+        if view is None:
+            views, out, increments, subintervals, at, lane_out = self._buffers
+            samples, estimates = _buffer_view(views, k, out, increments, subintervals, lane_out)
+            view = self._views[k] = (samples, Truth._of(at[:k]), {key: estimates[slot] for key, slot in self._slots})
+        return view
+
+
 def _check_command(command: Any, max_steer_rad: float) -> None:
     """An agent's command: a DriverCommand of finite values within the actuators' ranges."""
     if not isinstance(command, DriverCommand):
@@ -246,11 +313,13 @@ class CoSimulation:
         if not isinstance(keep_log, bool):
             raise TypeError(f"keep_log must be True or False, got {keep_log!r}")
         self.keep_log = keep_log
-        # {} from a caller that is done with each step's samples and estimates before the next
-        # step (the environments): without a log the sensor and the period kernel's estimators
-        # then write every period into the same arrays (n input rows -> (sensor outputs, int64
-        # flags, estimator outputs by slot, {k: (ImuSamples, estimates by slot) of the first k rows})).
+        # {} from a caller that is done with each step's samples, truth and estimates before the
+        # next step (the environments): without a log the sensor and the period kernel's
+        # estimators then write every period into the same arrays (n input rows -> (sensor
+        # outputs, int64 flags, estimator outputs by slot, {k: (ImuSamples, estimates by slot)
+        # of the first k rows})), and the truth at the samples too once a ``_PeriodPlan`` holds.
         self._sensor_buffers: dict[int, tuple] | None = None
+        self._plan: _PeriodPlan | None = None  # the period kernel's arguments, gathered once (see there)
         self.duration_s = float(duration_s)
         self.seed = int(seed)
         self.gyro_calibration_s = float(gyro_calibration_s)
@@ -567,9 +636,14 @@ class CoSimulation:
         inputs, the sensor, the truth at its samples, the wheel odometry there and the
         estimators of ``_lane`` in one kernel call (``_period``): the same numbers as
         ``_sense(vehicle._truth(rows, first_step))``, tested; the Earth's field alone (no
-        local disturbances). ``rows``
-        None: the rows of ``VehicleSim._step_period``, begun at ``t_start``, read from
-        MuJoCo's sensor history by the kernel."""
+        local disturbances). ``rows`` None: the rows of ``VehicleSim._step_period``, begun
+        at ``t_start``, read from MuJoCo's sensor history by the kernel; for a caller that
+        consumes each period's outputs within the period, the call's arguments then serve
+        the periods after (``_PeriodPlan``)."""
+        if rows is None and self._plan is not None:
+            variant = self._plan.after(self._last_truth_row)
+            if variant is not None:
+                return self._sense_planned(*variant, first_step, t_start)
         vehicle, imu = self.vehicle, self.imu
         orders, subs = self._increment_orders, self._subintervals
         history = (vehicle._history, vehicle._history_layout, t_start, vehicle._warnings, vehicle._sensordata,
@@ -601,23 +675,48 @@ class CoSimulation:
             lane_args[4 * slot:4 * slot + 2 + len(lane_out[slot])] = est._coef, est._state, *lane_out[slot]
             if slot < 2:
                 scratch = est._scratch
-        status, k = _sense_estimate_period(*history, vehicle._gather, first_step, vehicle.physics_rate_hz,
-                                           self.magnetic.earth.field_enu_ut, before, *imu._kernel_state(), orders,
-                                           subs, self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
-                                           vehicle.index.wheel_radius_m, odometry, flags64, _NO_VELOCITY, scratch,
-                                           *lane_args)
+        args = [*history, vehicle._gather, first_step, vehicle.physics_rate_hz, self.magnetic.earth.field_enu_ut,  # (_ARG_*)
+                before, *imu._kernel_state(), orders, subs, self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
+                vehicle.index.wheel_radius_m, odometry, flags64, _NO_VELOCITY, scratch, *lane_args]
+        status, k = _sense_estimate_period(*args)
+        result = self._period_outcome(status, k, first_step, packed, out, at, odometry, flags64, lane, lane_out, views)
+        if status == -1 and rows is None and views is not None and lane and self._lane_only:
+            self._plan = _PeriodPlan(self, args, lane, lane_out, views)
+            self._last_truth_row = self._plan.first_row
+        return result
+
+    def _sense_planned(self, args: list, last_row: Truth, first_step: int, t_start: float
+                       ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``_sense_period`` of the rows in MuJoCo's sensor history by the ``_PeriodPlan``'s
+        arguments ``args`` (``_PeriodPlan.after``: they hold), which leave ``last_row``."""
+        args[_ARG_T_START], args[_ARG_FIRST_STEP] = t_start, first_step
+        status, k = _sense_estimate_period(*args)
+        if status == -1:
+            self._last_truth_row = last_row
+            samples, at_samples, estimated = self._plan.view(k)
+            return samples, at_samples, dict(estimated)
+        # nothing changed, or an error to raise: as the general path goes on (estimators only run on -1)
+        self._plan = None
+        out = tuple(args[_ARG_OUT:_ARG_OUT + 4])
+        return self._period_outcome(status, k, first_step, args[_ARG_PACKED], out, args[_ARG_AT],
+                                    args[_ARG_ODOMETRY], args[_ARG_FLAGS], (), None, None)
+
+    def _period_outcome(self, status: int, k: int, first_step: int, packed: np.ndarray, out: tuple,
+                        at: np.ndarray, odometry: np.ndarray, flags64: np.ndarray, lane: tuple,
+                        lane_out: list | None, views: dict | None) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """What follows the period kernel's call (``status``, ``k``) on these arrays: the
+        samples and estimates, the period stepped again, or the general path's errors."""
         if status == -5:  # the history did not hold the rows (nothing changed): the period stepped again
-            return self._sense_period(vehicle._restep(vehicle._rows, k), first_step)
+            return self._sense_period(self.vehicle._restep(self.vehicle._rows, k), first_step)
         truth = Truth._of(packed)
         if status >= 0 or status == -3:  # inputs refused, nothing changed: the errors of the general path
             return self._sense(truth)
+        orders, subs = self._increment_orders, self._subintervals
         if views is None or status != -1:
-            samples = imu._samples(status, k, out, orders, subs)  # (raises on status -2)
+            samples = self.imu._samples(status, k, out, orders, subs)  # (raises on status -2)
             estimates = _lane_estimates(lane_out, k) if lane else None
-        elif k in views:
-            samples, estimates = views[k]
         else:
-            samples, estimates = views[k] = imu._samples(status, k, out, orders, subs), _lane_estimates(lane_out, k)
+            samples, estimates = _buffer_view(views, k, out, orders, subs, lane_out)
         if status == -4:
             self._truth_at(samples.t_s, truth)  # raises: the sensor and the physics are out of step
         self._last_truth_row = Truth._of(packed[-1:])

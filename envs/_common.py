@@ -370,7 +370,7 @@ class CosimEnv(gym.Env):
             self.observation_structure["gnss"] = (len(GNSS_FIELDS),)
         self._viewer: _Offscreen | _Window | None = None
         self._running = False
-        self._newest: Truth | None = None
+        self._newest_row: np.ndarray | None = None  # the truth at the newest sample (a packed ``Truth`` row)
 
     # ------------------------------------------------------------------ episodes
     @property
@@ -429,8 +429,8 @@ class CosimEnv(gym.Env):
         samples, truth, outputs = self._sim.step(command)
         if self._gnss is not None:
             self._gnss.push(truth)
-        if len(truth):
-            self._newest = Truth._of(truth.packed[-1:])
+        if truth.packed.shape[0]:
+            self._newest_row = truth.packed[-1]
         self._on_period(samples, truth, outputs)
         if self.render_mode == "human":
             self.render()

@@ -191,7 +191,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
                          outputs["baseline"].q_wb, self._baseline_q)
 
     def _state_info(self) -> dict[str, Any]:
-        row = self._newest.packed[0]
+        row = self._newest_row
         return {"t_s": float(row[0]), "q_wb_true": row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].copy(),
                 "q_wb_baseline": self._baseline_q.copy(), "distance_m": self._sim.vehicle.driver.state.s_m}
 

@@ -245,7 +245,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         values = np.empty(9)
         gnss = self._gnss.values if self._gnss is not None else _NO_GNSS
         self._nav_index = _driving_view(
-            observation, self._window.values, gnss, self._q_est, self._newest.packed[0], vehicle._sensordata,
+            observation, self._window.values, gnss, self._q_est, self._newest_row, vehicle._sensordata,
             vehicle._axle_x, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose,
             self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets,
             vehicle.driver.state.array, values)

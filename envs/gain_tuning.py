@@ -306,7 +306,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     def _measure(self) -> dict[str, Any]:
         """Mean errors of both copies over the last period's samples, and the state at the newest."""
-        newest = self._newest.packed[0]
+        newest = self._newest_row
         q_true = newest[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4]
         if self._period_samples:
             error, baseline_error = self._errors.tolist()

@@ -416,6 +416,7 @@ def test_period_kernel_equals_the_general_path(options, lane, reuse):
             assert (out.gyro_bias_b is None) == (want.gyro_bias_b is None), key
             assert out.gyro_bias_b is None or np.array_equal(out.gyro_bias_b, want.gyro_bias_b), key
     assert [key for key, _, _ in fused._lane()] == lane
+    assert (fused._plan is not None) == (reuse and fused._lane_only)  # (the first set: every period planned)
     for key, est in fused.estimators.items():
         assert np.array_equal(est.get_state().values, general.estimators[key].get_state().values), key
     if reuse:
@@ -424,18 +425,69 @@ def test_period_kernel_equals_the_general_path(options, lane, reuse):
         assert np.array_equal(fused.result().truth.packed, general.result().truth.packed)
 
 
+def _step_both(fused, general, periods):
+    """Step both co-simulations; each period's samples, truth and estimates the same."""
+    for _ in range(periods):
+        samples, truth, outputs = fused.step()
+        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        _assert_same_samples(samples, want_samples)
+        assert np.array_equal(truth.packed, want_truth.packed)
+        for key, out in outputs.items():
+            assert np.array_equal(out.q_wb, want_outputs[key].q_wb), key
+
+
+@pytest.mark.parametrize("change", ["reset", "set_state", "gains", "pattern", "estimator_reset", "imu_state"])
+def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
+    """The period kernel's arguments, gathered once for an environment's periods
+    (``_PeriodPlan``), hold the sensor's and the estimators' arrays: a reset, a restored
+    state, a parameter change or an estimator's reset between periods replaces them (or, for
+    BISO's gains, writes them in place), and the periods after are still those of the
+    general path, bit for bit."""
+    options = dict(duration_s=3.0, seed=4, estimators=("biso", "biso_plus", "poisson"))
+    fused = CoSimulation("figure8", keep_log=False, **options)
+    fused._sensor_buffers = {}
+    general = CoSimulation("figure8", **options)
+    _step_both(fused, general, 5)
+    saved = [sim.get_state() for sim in (fused, general)]
+    _step_both(fused, general, 5)
+    assert fused._plan is not None and fused._plan.after(fused._last_truth_row) is not None
+    plan = fused._plan
+    for sim, state in zip((fused, general), saved):
+        if change == "reset":
+            sim.reset()
+        elif change == "set_state":
+            sim.set_state(state)
+        elif change == "gains":  # (in place: the plan holds)
+            sim.estimators["biso"].set_params(cutoff_hz=1.5)
+        elif change == "pattern":
+            sim.estimators["biso"].set_params(pattern=13)
+        elif change == "estimator_reset":
+            sim.estimators["poisson"].reset(q0=(1.0, 0.0, 0.0, 0.0))
+        else:  # the same state in new arrays
+            sim.imu.set_state(sim.imu.get_state())
+    holds = fused._plan.after(fused._last_truth_row) is not None
+    assert holds == (change == "gains")
+    _step_both(fused, general, 5)
+    assert fused._plan is not None and (fused._plan is plan) == (change == "gains")
+
+
 @pytest.mark.parametrize("case", ["warning", "long_period"])
-def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case):
+@pytest.mark.parametrize("reuse", [False, True])
+def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case, reuse):
     """step() leaves a period's rows in MuJoCo's sensor history for the period kernel; after
     a MuJoCo warning (here a diverged state that MuJoCo resets) the period is stepped again,
     and a period longer than the history is stepped through ``_step_rows``: either way the
-    numbers of the general path."""
+    numbers of the general path, also from the arguments an environment's periods reuse."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     rate = 4.0 if case == "long_period" else 50.0
-    fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
+    fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate,
+                         keep_log=not reuse)
+    if reuse:
+        fused._sensor_buffers = {}
     general = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
     for period in range(6):
         if case == "warning" and period == 3:
+            assert (fused._plan is not None) == reuse
             fused.vehicle.data.qvel[0] = general.vehicle.data.qvel[0] = 1e11
         samples, truth, outputs = fused.step()
         want_samples, want_truth, want_outputs = general._sense(general._drive())

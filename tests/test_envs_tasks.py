@@ -18,6 +18,7 @@ from biso_cosim.estimators import make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, gains_from_cutoff
 from biso_cosim.frames import euler_from_quat, quat_angle_between, quat_from_rotvec, quat_multiply
 from biso_cosim.routes import parse_route
+from biso_cosim.vehicle.sim import Truth
 
 SHORT = {"episode_duration_s": 1.5}
 
@@ -52,13 +53,18 @@ def straight_route(length_m=60.0, speed_mps=6.0):
 # --------------------------------------------------------------------------------------
 
 
+def _newest_q_wb(core):
+    """The true attitude at the newest sample (a copy: the environment reuses its arrays)."""
+    return core._newest_row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4].copy()
+
+
 def test_reward_is_minus_the_rotation_angle_to_the_truth():
     env = gym.make("biso_cosim/AttitudeEstimation-v0", **SHORT)
     env.reset(seed=0)
     core = env.unwrapped
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
     for angle in (0.0, 0.1, 1.0, 3.0):
-        q_true = core._newest.q_wb[0]
+        q_true = _newest_q_wb(core)
         q_action = quat_multiply(q_true, quat_from_rotvec(angle * axis))
         sign = -1.0 if angle == 1.0 else 1.0  # q and -q are the same attitude
         _, reward, _, _, info = env.step(sign * 0.5 * q_action)  # any length: it is normalised
@@ -71,7 +77,7 @@ def test_euler_actions_mean_roll_pitch_yaw():
     env = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="euler", **SHORT)
     env.reset(seed=0)
     for _ in range(5):
-        roll, pitch, yaw = euler_from_quat(env.unwrapped._newest.q_wb[0])
+        roll, pitch, yaw = euler_from_quat(_newest_q_wb(env.unwrapped))
         _, reward, *_ = env.step(np.array([roll, pitch, yaw]))
         assert reward == pytest.approx(0.0, abs=1e-7)
         _, reward, *_ = env.step(np.array([roll, pitch, yaw + 0.2]))

@@ -401,15 +401,14 @@ def biso_coefficients(params: BisoParams, fs_hz: float) -> np.ndarray:
 
 
 _GAIN_NAMES = frozenset({"k", "k_p", "cutoff_hz"})
-_PATTERN_12 = _PATTERNS[12]  # the closed-form correction's pattern (``_with_closed_gains``)
+_PATTERN_12 = _PATTERNS[12]  # the closed-form correction's pattern (``_set_gains_in_place``)
 
 
-def _with_closed_gains(coef: np.ndarray, params: BisoParams, k: float, kp: float) -> np.ndarray:
-    """A copy of closed-mode coefficients ``coef`` with the equal gains k, k_p of ``params``
-    (the entries ``biso_coefficients`` derives from the gains, by its expressions)."""
-    c = coef.copy()
-    _set_closed_gains(c, k, kp, 0.5 if params.reading == "L" else 1.0, _PATTERN_12, _T_GOST)
-    return c
+def _set_gains_in_place(coef: np.ndarray, params: BisoParams, k: float, kp: float) -> None:
+    """Closed-mode coefficients ``coef`` with the equal gains k, k_p of ``params`` (the
+    entries ``biso_coefficients`` derives from the gains, by its expressions), in place:
+    the arrays a co-simulation's period kernel reads stay the same (``cosim._PeriodPlan``)."""
+    _set_closed_gains(coef, k, kp, 0.5 if params.reading == "L" else 1.0, _PATTERN_12, _T_GOST)
 
 
 # --------------------------------------------------------------------------------------
@@ -721,19 +720,21 @@ class BisoEstimator(Estimator):
 
         A tuning loop's change, equal scalar gains (``k``, ``k_p`` or ``cutoff_hz``) of the
         closed-form correction (pattern 12, k > 0) to other such gains, takes a short path:
-        only the coefficients that depend on the gains are derived again, by the same
-        expressions as ``biso_coefficients`` (the same numbers; tested)."""
+        only the coefficients that depend on the gains are derived again, in place, by the
+        same expressions as ``biso_coefficients`` (the same numbers; tested)."""
         if changes.keys() <= _GAIN_NAMES and self._coef[_C_MODE] == MODE_CLOSED:
             params = object.__new__(BisoParams)  # a frozen record: the copy's fields are set in its __dict__
             params.__dict__.update(self._params.__dict__, **changes)
             k, kp = params.k, params.k_p
             if (params.cutoff_hz is None and type(k) is float and type(kp) is float and 0.0 < k < math.inf
                     and 0.0 <= kp < math.inf):  # two valid scalars, checked in one expression
-                self._params, self._coef = params, _with_closed_gains(self._coef, params, k, kp)
+                self._params = params
+                _set_gains_in_place(self._coef, params, k, kp)
                 return
             k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
             if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
-                self._params, self._coef = params, _with_closed_gains(self._coef, params, k[0], kp[0])
+                self._params = params
+                _set_gains_in_place(self._coef, params, k[0], kp[0])
                 return
         super().set_params(**changes)
 
