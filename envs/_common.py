@@ -370,7 +370,9 @@ class CosimEnv(gym.Env):
             self.observation_structure["gnss"] = (len(GNSS_FIELDS),)
         self._viewer: _Offscreen | _Window | None = None
         self._running = False
-        self._newest_row: np.ndarray | None = None  # the truth at the newest sample (a packed ``Truth`` row)
+        # the truth at the newest sample (a packed ``Truth`` row): a view of the co-simulation's
+        # reused arrays, read within the step (or the next, before its period is stepped)
+        self._newest_row: np.ndarray | None = None
 
     # ------------------------------------------------------------------ episodes
     @property
