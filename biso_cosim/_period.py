@@ -14,7 +14,14 @@ from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
 from biso_cosim.vehicle._kernels import HISTORY_READ, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
-__all__ = ["_sense_period", "_sense_estimate_period", "_sensor_inputs"]
+__all__ = ["_sense_period", "_sense_estimate_period", "_sensor_inputs", "_period_samples"]
+
+# Positions in the period kernel's arguments (``_sense_period``'s order; ``CoSimulation``
+# lists them, ``_PeriodPlan`` and ``_period_samples`` read them): the sample outputs are
+# floats, words, status bytes, flags from _ARG_OUT on.
+_ARG_T_START, _ARG_FIRST_STEP, _ARG_BEFORE, _ARG_PACKED, _ARG_OUT, _ARG_AT, _ARG_ODOMETRY, _ARG_FLAGS = (
+    2, 7, 10, 20, 21, 25, 27, 28)
+_ARG_STATUS_BYTES, _ARG_SAMPLE_FLAGS = _ARG_OUT + 2, _ARG_OUT + 3  # (numba indexes a tuple by a constant)
 
 
 @jit
@@ -111,3 +118,14 @@ def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows,
         _biso_plus_batch(coef_c, state_c, gyro, accel, mag, odometry[:k], flags64[:k], q_c[:k], flags_c[:k],
                          bias_c[:k])
     return status, k
+
+
+@jit
+def _period_samples(period, k):
+    """The first k samples of the period kernel's call with the arguments ``period`` (status
+    -1), as ``MPU9250._samples`` and ``Truth.at`` view them: gyro, accel, mag (k, 3), the
+    fresh-magnetometer bytes (k,) (``mag_fresh`` as uint8) and the truth at them (k, 23)."""
+    floats, fresh, at = period[_ARG_OUT], period[_ARG_STATUS_BYTES], period[_ARG_AT]
+    bound = period[_ARG_SAMPLE_FLAGS].shape[0]
+    return (floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
+            floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), fresh[:k, 0], at[:k])

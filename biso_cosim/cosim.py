@@ -18,12 +18,13 @@ import math
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping, NamedTuple
 
 import mujoco
 import numpy as np
 
-from biso_cosim._period import _sense_estimate_period, _sensor_inputs
+from biso_cosim._period import (_ARG_AT, _ARG_BEFORE, _ARG_FIRST_STEP, _ARG_FLAGS, _ARG_ODOMETRY, _ARG_OUT, _ARG_PACKED,
+                                 _ARG_T_START, _sense_estimate_period, _sensor_inputs)
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
 from biso_cosim.estimators.biso import BisoEstimator
 from biso_cosim.estimators.biso_plus import BisoPlusEstimator
@@ -98,9 +99,20 @@ def _buffer_view(views: dict, k: int, out: tuple, increments: int, subintervals:
     return view
 
 
-# Positions in the period kernel's arguments as ``_sense_period`` lists them (``_PeriodPlan``).
-_ARG_T_START, _ARG_FIRST_STEP, _ARG_BEFORE, _ARG_PACKED, _ARG_OUT, _ARG_AT, _ARG_ODOMETRY, _ARG_FLAGS = (
-    2, 7, 10, 20, 21, 25, 27, 28)
+class PeriodHook(NamedTuple):
+    """A caller's own work after each period, run in the period kernel's call when the
+    period is planned (``_PeriodPlan``): one call into compiled code less per period, which
+    in a loop costs several microseconds (the physics evicts it from the caches).
+
+    ``kernel(period, q, *args)`` runs ``_sense_estimate_period(*period)`` and, on its status
+    -1, the work on the period's samples (``_period_samples(period, k)``), and returns the
+    (status, k); ``q`` holds the q_wb outputs (one row per possible sample) of the lane's
+    ``estimates`` named, in their order. After ``step``, ``CoSimulation._hook_ran`` tells
+    whether it ran; when not, the caller does the work itself on what ``step`` returned."""
+
+    kernel: Callable
+    estimates: tuple[str, ...]
+    args: tuple
 
 
 class _PeriodPlan:
@@ -111,7 +123,8 @@ class _PeriodPlan:
     Every array in them stays the same object while the simulation runs on, except those
     ``after`` checks: the sensor's parameters and state, the estimators' coefficients and
     states (a reset, a restored state or a change of parameters replaces them; BISO's
-    change of equal gains writes its coefficients in place). Two variants alternate: each
+    change of equal gains writes its coefficients in place), and the caller's
+    ``PeriodHook``, run in the same call. Two variants alternate: each
     writes the truth rows into its own array and reads the newest row of the other's as
     the row before the period. Which one is next is told by the identity of
     ``_last_truth_row``; after a reset or a restored state (None, or a new row) none is,
@@ -132,6 +145,11 @@ class _PeriodPlan:
                          args[_ARG_AT], lane_out)
         self._slots = tuple((key, slot) for key, _, slot in lane)
         self._views: dict[int, tuple] = {}
+        hook, slots = sim._period_hook, dict(self._slots)
+        self.hook = None  # (kernel, q outputs, args) of the caller's hook, when its estimates are in the lane
+        if hook is not None and all(key in slots for key in hook.estimates):
+            self.hook = (hook.kernel, tuple(lane_out[slots[key]][0] for key in hook.estimates), hook.args)
+        self._sources += ((sim, "_period_hook", hook),)
 
     def after(self, last_row: Truth | None) -> tuple[list, Truth] | None:
         """The arguments for the period after the one whose newest truth row is ``last_row``
@@ -320,6 +338,8 @@ class CoSimulation:
         # of the first k rows})), and the truth at the samples too once a ``_PeriodPlan`` holds.
         self._sensor_buffers: dict[int, tuple] | None = None
         self._plan: _PeriodPlan | None = None  # the period kernel's arguments, gathered once (see there)
+        self._period_hook: PeriodHook | None = None  # a caller's work in the planned periods' kernel call
+        self._hook_ran = False  # whether it ran in the last step
         self.duration_s = float(duration_s)
         self.seed = int(seed)
         self.gyro_calibration_s = float(gyro_calibration_s)
@@ -591,6 +611,7 @@ class CoSimulation:
         the end of the period: ``vehicle.driver.state`` is then where the step left the car
         (scripted periods record it at their start, where the driver's command is made).
         """
+        self._hook_ran = False
         if self.magnetic.disturbances:
             return self._sense(self._drive(command))
         self._command(command)
@@ -690,8 +711,14 @@ class CoSimulation:
         """``_sense_period`` of the rows in MuJoCo's sensor history by the ``_PeriodPlan``'s
         arguments ``args`` (``_PeriodPlan.after``: they hold), which leave ``last_row``."""
         args[_ARG_T_START], args[_ARG_FIRST_STEP] = t_start, first_step
-        status, k = _sense_estimate_period(*args)
+        hook = self._plan.hook
+        if hook is None:
+            status, k = _sense_estimate_period(*args)
+        else:
+            kernel, q, hook_args = hook
+            status, k = kernel(tuple(args), q, *hook_args)
         if status == -1:
+            self._hook_ran = hook is not None
             self._last_truth_row = last_row
             samples, at_samples, estimated = self._plan.view(k)
             return samples, at_samples, dict(estimated)

@@ -26,7 +26,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from biso_cosim.cosim import CoSimulation, EstimatorSpec
+from biso_cosim.cosim import CoSimulation, EstimatorSpec, PeriodHook
 from biso_cosim.envs._kernels import _inside, _push_window
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.routes import Route, load_route
@@ -418,6 +418,7 @@ class CosimEnv(gym.Env):
             self._sim.seed = sensor_seed
             self._sim.reset()
         self._window.clear()
+        self._sim._period_hook = self._period_hook()
         info = {"episode_seed": episode_seed, "sensor_seed": sensor_seed, "route_seed": route_seed,
                 "route": self._sim.route.name}
         if self._gnss is not None:
@@ -433,7 +434,8 @@ class CosimEnv(gym.Env):
             self._gnss.push(truth)
         if truth.packed.shape[0]:
             self._newest_row = truth.packed[-1]
-        self._on_period(samples, truth, outputs)
+        if not self._sim._hook_ran:
+            self._on_period(samples, truth, outputs)
         if self.render_mode == "human":
             self.render()
         return samples, truth, outputs
@@ -442,6 +444,10 @@ class CosimEnv(gym.Env):
         """What is updated after every control period: the IMU window (a subclass adds its
         own updates, in one kernel call with the window's)."""
         self._window.push(samples)
+
+    def _period_hook(self) -> PeriodHook | None:
+        """``_on_period``'s work as a hook of the co-simulation's period kernel (None: none)."""
+        return None
 
     def _first_period(self, command: DriverCommand | None = None):
         """Advance from the reset until the observation holds a sample: one period at the

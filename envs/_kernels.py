@@ -1,5 +1,6 @@
 """Jitted kernels of the environments' own per-step work (arrays in, arrays out, no user
-errors: the environments validate first). Each has a plain NumPy twin in the tests."""
+errors: the environments validate first). Each has a plain NumPy twin in the tests; the period
+hooks at the end, the environments' plain path (the work after the period kernel)."""
 
 from __future__ import annotations
 
@@ -8,13 +9,17 @@ import math
 import numpy as np
 
 from biso_cosim._numba import jit
+from biso_cosim._period import _period_samples, _sense_estimate_period
 from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
+from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
            "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period", "_tuning_period",
-           "_driving_period"]
+           "_driving_period", "_attitude_step", "_tuning_step", "_driving_step"]
+
+_Q0, _Q1 = Truth.QUAT_COLUMN, Truth.QUAT_COLUMN + 4  # a packed truth row's q_wb
 
 
 @jit
@@ -209,3 +214,41 @@ def _route_ahead(path_x, path_y, path_s, s, offsets, x, y, yaw, out):
         dx, dy = path_x[j] - x, path_y[j] - y
         out[i, 0] = c * dx + sn * dy
         out[i, 1] = -sn * dx + c * dy
+
+
+# --------------------------------------------------------------------------- period hooks
+# Each environment's work after a period, in the period kernel's call (``cosim.PeriodHook``):
+# ``_sense_estimate_period`` of the period's arguments, then on status -1 the work on its
+# samples, with ``q`` the q_wb outputs of the estimators the environment named.
+
+
+@jit
+def _attitude_step(period, q, window, baseline_q):
+    """A period, and ``_attitude_period`` on it (q: the baseline's)."""
+    status, k = _sense_estimate_period(*period)
+    if status == -1:
+        gyro, accel, mag, fresh, _ = _period_samples(period, k)
+        _attitude_period(window, gyro, accel, mag, fresh, q[0][:k], baseline_q)
+    return status, k
+
+
+@jit
+def _tuning_step(period, q, window, tuned_q, baseline_q, errors):
+    """A period, and ``_tuning_period`` on it (q: the tuned copy's, the baseline's)."""
+    status, k = _sense_estimate_period(*period)
+    if status == -1:
+        gyro, accel, mag, fresh, at = _period_samples(period, k)
+        _tuning_period(window, gyro, accel, mag, fresh, q[0][:k], q[1][:k], at[:, _Q0:_Q1], tuned_q, baseline_q,
+                       errors)
+    return status, k
+
+
+@jit
+def _driving_step(period, q, window, sensordata, steer_index, half_radius_m, dt, pose, q_est):
+    """A period, and ``_driving_period`` on it (q: the estimator's)."""
+    status, k = _sense_estimate_period(*period)
+    if status == -1:
+        gyro, accel, mag, fresh, at = _period_samples(period, k)
+        _driving_period(window, gyro, accel, mag, fresh, q[0][:k], at, sensordata, steer_index, half_radius_m, dt,
+                        pose, q_est)
+    return status, k

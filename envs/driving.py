@@ -9,10 +9,10 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _driving_period, _driving_view
+from biso_cosim.envs._kernels import _driving_period, _driving_step, _driving_view
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
 
@@ -221,6 +221,12 @@ class DrivingEnv(CosimEnv, EzPickle):
         v = self._sim.vehicle
         p = v.data.sensordata[v.index.rear_axle_pos]
         return float(p[0]), float(p[1])
+
+    def _period_hook(self) -> PeriodHook:
+        vehicle = self._sim.vehicle
+        return PeriodHook(_driving_step, ("estimator",),
+                          (self._window.values, vehicle._sensordata, vehicle.index.steering_angle.start,
+                           0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose, self._q_est))
 
     def _on_period(self, samples, truth, outputs) -> None:
         """Dead-reckon the rear axle over the step's samples: the estimator's forward axis,

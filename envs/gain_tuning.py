@@ -10,12 +10,12 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angles_to, _tuning_period
+from biso_cosim.envs._kernels import _angles_to, _tuning_period, _tuning_step
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -182,6 +182,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._gains[:] = self._initial_gains
         self._tuned_q[:] = (1.0, 0.0, 0.0, 0.0)
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
+        self._closed_coef: np.ndarray | None = None  # see reset
         self._baseline_q = self._tuned_q.copy()
         self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
         self._period_samples = 0
@@ -250,7 +251,12 @@ class GainTuningEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
-        self._sim.estimators["tuned"].set_params(**self._initial)  # Estimator.reset keeps parameters
+        tuned = self._sim.estimators["tuned"]
+        tuned.set_params(**self._initial)  # Estimator.reset keeps parameters
+        # The coefficients the actions' gains are written into while they stay these: BISO's
+        # closed form tuned by f_c > 0 and r (valid at the box's corners, so k > 0 and k_p >= 0 inside)
+        closed = CROSS_LINK_RATIO in self.tuning and self.tuning["cutoff_hz"][0] > 0.0 and tuned._is_closed_form()
+        self._closed_coef = tuned._coef if closed else None
         self._gains[:] = self._initial_gains
         self._first_period()
         info.update(self._measure())
@@ -277,11 +283,17 @@ class GainTuningEnv(CosimEnv, EzPickle):
         then the values the action stands for (with the cross-link ratio also the k and k_p
         derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
-        changes = self._changes(values)
         tuned = self._sim.estimators["tuned"]
-        tuned.set_params(**changes)
-        if "k" in changes:
-            values.update(k=changes["k"], k_p=changes["k_p"])
+        if tuned._coef is self._closed_coef:  # (see reset) BISO's short path, the same numbers
+            k, kp = gains_from_cutoff(values["cutoff_hz"], self._reading)
+            kp *= values[CROSS_LINK_RATIO]
+            tuned._set_equal_gains(k, kp)
+            values.update(k=k, k_p=kp)
+        else:
+            changes = self._changes(values)
+            tuned.set_params(**changes)
+            if "k" in changes:
+                values.update(k=changes["k"], k_p=changes["k_p"])
         self._in_force = (tuned._params, values)
         self._gains[:] = a
 
@@ -295,6 +307,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
                 values.update(k=float(gains["k"]), k_p=float(gains["k_p"]))
             self._in_force = (params, values)
         return dict(self._in_force[1])
+
+    def _period_hook(self) -> PeriodHook:
+        return PeriodHook(_tuning_step, ("tuned", "baseline"),
+                          (self._window.values, self._tuned_q, self._baseline_q, self._errors))
 
     def _on_period(self, samples, truth, outputs) -> None:
         """The IMU window, and the mean errors of both copies over the period's samples with

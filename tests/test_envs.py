@@ -159,6 +159,46 @@ def test_same_seed_same_rollout_bit_for_bit(env_id, kwargs):
     assert not np.array_equal(a[5][0], c[5][0])
 
 
+@pytest.mark.parametrize(("env_id", "kwargs"), [CASES[0], CASES[2], CASES[4], CASES[5], CASES[6], CASES[7]],
+                         ids=[CASE_IDS[i] for i in (0, 2, 4, 5, 6, 7)])
+def test_fast_paths_step_as_the_plain_ones_bit_for_bit(env_id, kwargs):
+    """Each environment's own work inside the period kernel's call (``PeriodHook``) and
+    GainTuning's short gain change give the steps of the plain paths (the work after the
+    kernel, ``set_params``), through a restored state and a parameter change that make
+    the co-simulation plan its periods again and the gain change take the long path."""
+    fast, plain = (gym.make(env_id, **SHORT, **kwargs) for _ in range(2))
+    plain.unwrapped._period_hook = lambda: None
+    for est in plain.unwrapped.sim.estimators.values():
+        est._is_closed_form = lambda: False
+    for env in (fast, plain):
+        env.action_space.seed(4)
+        env.reset(seed=9)
+    tuned = fast.unwrapped.sim.estimators.get("tuned")  # GainTuning's
+    if tuned is not None:
+        short = tuned.method == "biso" and "cross_link_ratio" in fast.unwrapped.tuning  # (BISO tuned by f_c and r)
+        assert (fast.unwrapped._closed_coef is tuned._coef) == short
+    hooked = []
+    for i in range(60):
+        if i == 20:
+            for env in (fast, plain):
+                env.unwrapped.sim.set_state(env.unwrapped.sim.get_state())
+        if i == 40 and tuned is not None:
+            for env in (fast, plain):  # a change of anything but the gains makes new coefficients
+                estimator = env.unwrapped.sim.estimators["tuned"]
+                estimator.set_params(declination_rad=estimator.params.declination_rad)
+            assert fast.unwrapped._closed_coef is not tuned._coef
+        steps = [env.step(env.action_space.sample()) for env in (fast, plain)]
+        assert data_equivalence(steps[0], steps[1], exact=True), i
+        hooked.append(fast.unwrapped.sim._hook_ran)
+        assert not plain.unwrapped.sim._hook_ran
+        if steps[0][2] or steps[0][3]:
+            break
+    if fast.unwrapped.sim._lane_only:  # (not for two BISO+: the kernel runs one) all but a period or
+        assert sum(hooked) >= len(hooked) - 4  # two after the reset and the restored state
+    else:
+        assert not any(hooked)
+
+
 def test_episode_seeds_derive_from_the_reset_seed():
     env = gym.make("biso_cosim/AttitudeEstimation-v0", route="random", **SHORT)
     _, info = env.reset(seed=5)

@@ -738,6 +738,20 @@ class BisoEstimator(Estimator):
                 return
         super().set_params(**changes)
 
+    def _is_closed_form(self) -> bool:
+        """Whether the correction is the closed form (pattern 12, k > 0): the gains then
+        change in place (``set_params``' short path, ``_set_equal_gains``)."""
+        return bool(self._coef[_C_MODE] == MODE_CLOSED)
+
+    def _set_equal_gains(self, k: float, kp: float) -> None:
+        """``set_params(k=k, k_p=kp, cutoff_hz=None)`` by its short path without its checks,
+        for a caller that has made them: ``_is_closed_form()``, floats 0 < k < ∞, 0 ≤ kp < ∞
+        (a tuning loop's change every step, GainTuning-v0's)."""
+        params = object.__new__(BisoParams)
+        params.__dict__.update(self._params.__dict__, k=k, k_p=kp, cutoff_hz=None)
+        self._params = params
+        _set_gains_in_place(self._coef, params, k, kp)
+
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)
 
