@@ -88,6 +88,14 @@ def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, 
 
 
 @jit
+def _sample_rows(floats, bound, k):
+    """The gyro, accel and mag rows (k, 3) of the first k samples in the chip's ``floats``
+    output for up to ``bound`` samples (its column blocks, as ``MPU9250._samples`` reads them)."""
+    return (floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
+            floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)))
+
+
+@jit
 def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_w,
                            before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats,
                            words, status_bytes, flags, at, wheel_radius_m, odometry, flags64, no_velocity, scratch,
@@ -106,10 +114,7 @@ def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows,
                               packed, floats, words, status_bytes, flags, at, wheel_radius_m, odometry, flags64)
     if status != -1:
         return status, k
-    bound = flags.shape[0]  # the sample columns of ``floats`` (``MPU9250._samples``)
-    gyro = floats[bound:bound + 3 * k].reshape((k, 3))
-    accel = floats[4 * bound:4 * bound + 3 * k].reshape((k, 3))
-    mag = floats[7 * bound:7 * bound + 3 * k].reshape((k, 3))
+    gyro, accel, mag = _sample_rows(floats, flags.shape[0], k)
     if coef_a.shape[0]:
         _biso_batch(coef_a, state_a, gyro, accel, mag, flags64[:k], no_velocity, q_a[:k], flags_a[:k], scratch)
     if coef_b.shape[0]:
@@ -125,7 +130,5 @@ def _period_samples(period, k):
     """The first k samples of the period kernel's call with the arguments ``period`` (status
     -1), as ``MPU9250._samples`` and ``Truth.at`` view them: gyro, accel, mag (k, 3), the
     fresh-magnetometer bytes (k,) (``mag_fresh`` as uint8) and the truth at them (k, 23)."""
-    floats, fresh, at = period[_ARG_OUT], period[_ARG_STATUS_BYTES], period[_ARG_AT]
-    bound = period[_ARG_SAMPLE_FLAGS].shape[0]
-    return (floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
-            floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), fresh[:k, 0], at[:k])
+    gyro, accel, mag = _sample_rows(period[_ARG_OUT], period[_ARG_SAMPLE_FLAGS].shape[0], k)
+    return gyro, accel, mag, period[_ARG_STATUS_BYTES][:k, 0], period[_ARG_AT][:k]

@@ -101,8 +101,8 @@ def _buffer_view(views: dict, k: int, out: tuple, increments: int, subintervals:
 
 class PeriodHook(NamedTuple):
     """A caller's own work after each period, run in the period kernel's call when the
-    period is planned (``_PeriodPlan``): one call into compiled code less per period, which
-    in a loop costs several microseconds (the physics evicts it from the caches).
+    period is planned (``_PeriodPlan``): one call into compiled code and its Python less per
+    period, each a few microseconds in the loop (the physics evicts them from the caches).
 
     ``kernel(period, q, *args)`` runs ``_sense_estimate_period(*period)`` and, on its status
     -1, the work on the period's samples (``_period_samples(period, k)``), and returns the
@@ -131,8 +131,9 @@ class _PeriodPlan:
     and the general path plans again."""
 
     def __init__(self, sim: "CoSimulation", args: list, lane: tuple, lane_out: list, views: dict):
-        imu = sim.imu
+        imu, hook = sim.imu, sim._period_hook
         self._sources = ((imu, "_cp", imu._cp), (imu, "_cs", imu._cs), (imu, "_chs", imu._chs),
+                         (sim, "_period_hook", hook),
                          *((est, name, getattr(est, name)) for _, est, _ in lane for name in ("_coef", "_state")))
         first = args[_ARG_PACKED]
         second = np.empty_like(first)
@@ -145,11 +146,10 @@ class _PeriodPlan:
                          args[_ARG_AT], lane_out)
         self._slots = tuple((key, slot) for key, _, slot in lane)
         self._views: dict[int, tuple] = {}
-        hook, slots = sim._period_hook, dict(self._slots)
+        slots = dict(self._slots)
         self.hook = None  # (kernel, q outputs, args) of the caller's hook, when its estimates are in the lane
         if hook is not None and all(key in slots for key in hook.estimates):
             self.hook = (hook.kernel, tuple(lane_out[slots[key]][0] for key in hook.estimates), hook.args)
-        self._sources += ((sim, "_period_hook", hook),)
 
     def after(self, last_row: Truth | None) -> tuple[list, Truth] | None:
         """The arguments for the period after the one whose newest truth row is ``last_row``
