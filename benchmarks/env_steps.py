@@ -14,15 +14,17 @@ paid on top of the steps the workers run in parallel.
     python benchmarks/env_steps.py                       # 40 s episodes, every environment
     python benchmarks/env_steps.py --envs Driving --duration 60 --repeat 5
 
-The ratios to bare physics come from ``time_blocks``: the episode's environment steps in
+The ratios to bare physics come from ``time_blocks``: the episode's environment steps,
+replaying the actions the policy took (the same steps without the policy between them), in
 blocks of 25, each block followed by the same periods' physics bare (the same controls from
 the same state, ending in the same state, checked; the car's model without the sensor
 history the co-simulation reads its rows from): each loop runs with warm caches, as in
 a loop of its own, while the two stay milliseconds apart and so meet the same load on a
-machine shared with other jobs (separate runs here differ by ±25 %). The first step of each
-loop in a block is a warm-up, not timed: it follows the other loop, whose data and code it
-finds in the caches instead of its own. These columns are averaged over the repetitions; the
-other columns are each the best of the repetitions.
+machine shared with other jobs (separate runs here differ by ±25 %). Each loop is timed as
+a whole, by one clock reading before it and one after. The first step of each loop in a
+block is a warm-up, not timed: it follows the other loop, whose data and code it finds in
+the caches instead of its own. These columns are averaged over the repetitions; the other
+columns are each the best of the repetitions.
 
 Columns: µs per step of the unwrapped environment (``env``), the part of it outside the
 co-simulation's step measured in the same calls (``own``: the environment's own work), the
@@ -128,13 +130,17 @@ def bare_model(vehicle) -> mujoco.MjModel:
     return model
 
 
-def time_blocks(env, make_policy, steps: int, seed: int, block: int, clock=time.process_time) -> tuple[float, float, float, int]:
-    """An episode of ``env.step`` in blocks of ``block`` steps, each block followed by the
-    same periods' physics bare on the model without sensor history (``bare_model``) from the
-    state at the block's start,
-    each period's recorded controls and its physics steps, by one ``mj_step`` call per
-    physics step and by one ``mj_step(model, data, nstep)`` call per period. The replays end
-    in the environment's state, bit for bit (checked): they do the same physics work.
+def time_blocks(env, actions: np.ndarray, controls: np.ndarray, seed: int, block: int,
+                clock=time.process_time) -> tuple[float, float, float, int]:
+    """An episode of ``env.step`` replaying its recorded ``actions`` (``time_env``: the same
+    seed, the same steps) in blocks of ``block`` steps, each block followed by the same
+    periods' physics bare on the model without sensor history (``bare_model``) from the
+    state at the block's start, each period's recorded ``controls`` and its physics steps,
+    by one ``mj_step`` call per physics step and by one ``mj_step(model, data, nstep)`` call
+    per period. The replays end in the environment's state, bit for bit (checked): they do
+    the same physics work. Each loop is timed by one clock reading before and one after
+    it, with nothing else in it: the environment's loop runs no policy and reads no clock
+    between its steps, as the physics replays do not between their periods.
 
     With blocks of more than one step, the first step of each loop is a warm-up, not timed:
     it follows another loop (a switch of data, code or both; the nstep replay alone would
@@ -142,20 +148,18 @@ def time_blocks(env, make_policy, steps: int, seed: int, block: int, clock=time.
     timed warm, as in a loop of its own. Blocks of one step time every step (the
     ``interleaved`` column: each step starts cold). Returns the total times of env, loop and
     nstep, and the number of steps timed in each."""
-    obs, _ = env.reset(seed=seed)
-    core = env.unwrapped
-    policy = make_policy(env, seed)
-    vehicle = core.sim.vehicle
+    env.reset(seed=seed)
+    vehicle = env.unwrapped.sim.vehicle
     model, data, per, step = vehicle.model, vehicle.data, vehicle.steps_per_control, mujoco.mj_step
     bare = bare_model(vehicle)
     shadow = mujoco.MjData(bare)
     spec = PHYSICS_STATE
     start_state = np.empty(mujoco.mj_stateSize(model, spec))
-
+    env_step = env.step
     warm_up = 1 if block > 1 else 0
 
-    def periods(controls, nstep_calls: bool) -> None:
-        for ctrl in controls:
+    def periods(ctrls, nstep_calls: bool) -> None:
+        for ctrl in ctrls:
             shadow.ctrl[:] = ctrl
             if nstep_calls:
                 step(bare, shadow, per)
@@ -163,35 +167,30 @@ def time_blocks(env, make_policy, steps: int, seed: int, block: int, clock=time.
                 for _ in range(per):
                     step(bare, shadow)
 
-    def replay(controls, nstep_calls: bool) -> float:
+    def replay(ctrls, nstep_calls: bool) -> float:
         mujoco.mj_setState(bare, shadow, start_state, spec)
-        periods(controls[:warm_up], nstep_calls)
+        periods(ctrls[:warm_up], nstep_calls)
         start = clock()
-        periods(controls[warm_up:], nstep_calls)
+        periods(ctrls[warm_up:], nstep_calls)
         elapsed = clock() - start
         if not (np.array_equal(shadow.qpos, data.qpos) and np.array_equal(shadow.qvel, data.qvel)):
             raise RuntimeError("the bare replay of a block left another state than the environment's steps")
         return elapsed
 
     t_env = t_loop = t_nstep = 0.0
-    done, timed, ended = 0, 0, False
-    while done < steps and not ended:
+    timed = 0
+    for first in range(0, len(actions), block):
+        block_actions, block_controls = actions[first:first + block], controls[first:first + block]
         mujoco.mj_getState(model, data, start_state, spec)
-        controls = []
-        for i in range(min(block, steps - done)):
-            a = policy(obs)
-            start = clock()
-            obs, _, terminated, truncated, _ = env.step(a)
-            if i >= warm_up:
-                t_env += clock() - start
-            controls.append(data.ctrl.copy())
-            if terminated or truncated:
-                ended = True
-                break
-        t_loop += replay(controls, False)
-        t_nstep += replay(controls, True)
-        done += len(controls)
-        timed += max(len(controls) - warm_up, 0)
+        for a in block_actions[:warm_up]:
+            env_step(a)
+        start = clock()
+        for a in block_actions[warm_up:]:
+            env_step(a)
+        t_env += clock() - start
+        t_loop += replay(block_controls, False)
+        t_nstep += replay(block_controls, True)
+        timed += max(len(block_actions) - warm_up, 0)
     return t_env, t_loop, t_nstep, timed
 
 
@@ -273,10 +272,10 @@ def main() -> None:
             best["own"] = min(best["own"], t_env - t_inner)
             best["make"] = min(best["make"], time_env(wrapped, make_policy, steps, 1, clock)[0])
             best["cosim"] = min(best["cosim"], time_cosim(core, actions, 1, clock))
-            *times, timed = time_blocks(core, make_policy, steps, 1, BLOCK, clock)
+            *times, timed = time_blocks(core, actions, controls, 1, BLOCK, clock)
             for key, value in zip(("env", "bare", "nstep"), times):
                 per_step[key] += value / timed / args.repeat
-            t_env, _, t_nstep, _ = time_blocks(core, make_policy, steps, 1, 1, clock)
+            t_env, _, t_nstep, _ = time_blocks(core, actions, controls, 1, 1, clock)
             interleaved.append(t_env / t_nstep)
         done = len(actions)
         sync = time_vector(env_id, "sync", args.duration, actions, seed=1)

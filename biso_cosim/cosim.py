@@ -72,6 +72,10 @@ _NO_VELOCITY = np.empty((0, 3))
 _NO_SCRATCH = np.empty((0, 0))
 _NO_LANE = (np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64)) * 2 + (
     np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0, 3)))
+# ``CoSimulation.step``'s command from a caller that has written the period's controls into
+# MuJoCo's ctrl itself, after checking them (an environment's action, ``Driving-v0``): the
+# period runs as with a DriverCommand of those controls, without making and checking one.
+_CONTROLS_APPLIED = object()
 
 
 def _lane_outputs(bound: int, slots: Iterable[int] = (0, 1, 2)) -> list[tuple[np.ndarray, ...] | None]:
@@ -631,11 +635,12 @@ class CoSimulation:
         return rows
 
     def _command(self, command: DriverCommand | None) -> None:
-        """The controls of the next period: the scripted driver's, or ``command``."""
+        """The controls of the next period: the scripted driver's, or ``command`` (or those
+        in ctrl already: ``_CONTROLS_APPLIED``)."""
         vehicle = self.vehicle
         if command is None:
             vehicle._drive()  # the scripted driver (drive() without its command record)
-        else:
+        elif command is not _CONTROLS_APPLIED:
             _check_command(command, vehicle.parameters["max_steer_rad"])
             vehicle.apply(command)
 

@@ -473,6 +473,13 @@ class CosimEnv(gym.Env):
     def _check_action(self, action: Any) -> np.ndarray:
         """The action as a float64 array of the action space's shape, finite, within bounds
         (clipped or refused per ``action_bounds``). Raises ValueError before anything changes."""
+        a = self._action_array(action)
+        if _inside(a, self.action_space.low, self.action_space.high):  # the common case in one call
+            return a
+        return self._bounded_action(a)
+
+    def _action_array(self, action: Any) -> np.ndarray:
+        """The action as a new float64 array of the action space's shape (else ValueError)."""
         space = self.action_space
         try:
             a = np.array(action, dtype=np.float64)
@@ -480,9 +487,12 @@ class CosimEnv(gym.Env):
             raise ValueError(f"action must be an array of {space.shape[0]} real numbers, got {action!r}") from None
         if a.shape != space.shape:
             raise ValueError(f"action must have shape {space.shape} ({', '.join(self.ACTION_NAMES)}), got {a.shape}")
-        low, high = space.low, space.high
-        if _inside(a, low, high):  # the common case in one call (NaN compares false)
-            return a
+        return a
+
+    def _bounded_action(self, a: np.ndarray) -> np.ndarray:
+        """``_check_action`` of an ``_action_array`` not inside the bounds (NaN compares
+        false): ValueError for a value that is not finite, else clipped or refused."""
+        low, high = self.action_space.low, self.action_space.high
         bad = ~np.isfinite(a)
         if bad.any():
             names = [self.ACTION_NAMES[i] for i in np.flatnonzero(bad)]

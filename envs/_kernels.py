@@ -10,14 +10,15 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim._period import _period_samples, _sense_estimate_period
+from biso_cosim.estimators.biso import _cutoff_gains, _write_equal_gains
 from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
-from biso_cosim.vehicle._kernels import S_CROSS, S_S
+from biso_cosim.vehicle._kernels import S_CROSS, S_S, _apply_controls
 from biso_cosim.vehicle.sim import Truth
 
-__all__ = ["_inside", "_push_window", "_angle", "_angles_to", "_mean_angle", "_mean_angles_to", "_dead_reckon",
-           "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period", "_tuning_period",
-           "_driving_period", "_attitude_step", "_tuning_step", "_driving_step"]
+__all__ = ["_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
+           "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
+           "_tuning_period", "_driving_period", "_attitude_step", "_tuning_step", "_driving_step"]
 
 _Q0, _Q1 = Truth.QUAT_COLUMN, Truth.QUAT_COLUMN + 4  # a packed truth row's q_wb
 
@@ -56,6 +57,50 @@ def _inside(a, low, high):
         if not (low[i] <= a[i] <= high[i]):
             return False
     return True
+
+
+@jit
+def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, driver_state):
+    """Driving-v0's action (throttle, steering) into MuJoCo's ``ctrl`` when it is inside
+    [low, high] (``_inside``): the controls of its DriverCommand, steer = steering ·
+    max_steer_rad, drive = max(throttle, 0), brake = max(−throttle, 0), by
+    ``_apply_controls`` (``VehicleSim.apply``'s). Returns the driver's progress along the
+    route before the step (m), or NaN, with nothing written, when the action is not inside."""
+    if not _inside(a, low, high):
+        return math.nan
+    throttle, steering = a[0], a[1]
+    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), max(-throttle, 0.0))
+    return driver_state[S_S]
+
+
+@jit
+def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading_l, coef, values):
+    """GainTuning-v0's action for BISO tuned by f_c and r alone, in its closed form, when
+    it is inside [low, high] (``_inside``) and is not the ``gains`` in force: the values it
+    stands for into values[:m] (``params_from_action``: scales' rows are low, high / low,
+    high − low and 1 for a log scale), k and k_p into values[m], values[m + 1]
+    (``gains_from_cutoff`` of f_c, k_p times r), the coefficients ``coef`` written in place
+    (``_write_equal_gains``: ``BisoEstimator.set_params``' short path) and a into ``gains``.
+    Returns 1 then, 0 for the gains in force, and -1, with nothing written, when a is not
+    inside."""
+    if not _inside(a, low, high):
+        return -1
+    m = a.shape[0]
+    same = True
+    for i in range(m):
+        same = same and a[i] == gains[i]
+    if same:
+        return 0
+    for i in range(m):
+        u = 0.5 * (a[i] + 1.0)
+        values[i] = scales[0, i] * scales[1, i] ** u if scales[3, i] else scales[0, i] + u * scales[2, i]
+    k, kp = _cutoff_gains(values[cutoff_index], reading_l)
+    kp *= values[ratio_index]
+    values[m], values[m + 1] = k, kp
+    _write_equal_gains(coef, k, kp, reading_l)
+    for i in range(m):
+        gains[i] = a[i]
+    return 1
 
 
 @jit

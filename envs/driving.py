@@ -9,10 +9,10 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
+from biso_cosim.cosim import _CONTROLS_APPLIED, DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _driving_period, _driving_step, _driving_view
+from biso_cosim.envs._kernels import _drive_action, _driving_period, _driving_step, _driving_view
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
 
@@ -193,13 +193,8 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     def step(self, action: Any):
         self._require_running()
-        a = self._check_action(action)
-        vehicle = self._sim.vehicle
-        throttle, steering = a.tolist()
-        command = DriverCommand(steer_rad=steering * vehicle.parameters["max_steer_rad"], drive=max(throttle, 0.0),
-                                brake=max(-throttle, 0.0))
-        before = vehicle.driver.state.s_m
-        self._advance(command)  # (the driver's progress and cross-track error: at the end of the step)
+        before = self._apply_action(action)
+        self._advance(_CONTROLS_APPLIED)  # (the driver's progress and cross-track error: at the end of the step)
         info, observation = self._view()
         w = self.weights
         terms = {
@@ -215,6 +210,21 @@ class DrivingEnv(CosimEnv, EzPickle):
         truncated = self._truncated and not terminated
         self._end_if(terminated, truncated)
         return observation, reward, terminated, truncated, info
+
+    def _apply_action(self, action: Any) -> float:
+        """Check the action (``_check_action``'s errors and clipping) and write the controls
+        of its DriverCommand (see the action space) into MuJoCo's ctrl: for an action inside
+        the bounds in one kernel call (``_drive_action``). Returns the driver's progress
+        along the route before the step (m)."""
+        a = self._action_array(action)
+        vehicle = self._sim.vehicle
+        space = self.action_space
+        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], vehicle._ctrl, vehicle._actuators,
+                 vehicle.driver.state.array)
+        before = _drive_action(a, *apply)
+        if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
+            before = _drive_action(self._bounded_action(a), *apply)
+        return before
 
     # ------------------------------------------------------------------ navigation
     def _rear_axle_xy(self) -> tuple[float, float]:

@@ -15,7 +15,7 @@ from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angles_to, _tuning_period, _tuning_step
+from biso_cosim.envs._kernels import _angles_to, _tune_closed, _tuning_period, _tuning_step
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -166,6 +166,14 @@ class GainTuningEnv(CosimEnv, EzPickle):
         # per tuned parameter: name, low, high / low, high − low, whether the scale is logarithmic
         self._action_map = [(name, low, high / low if scale == "log" else math.nan, high - low, scale == "log")
                             for name, (low, high, scale) in self.tuning.items()]
+        # BISO tuned by f_c > 0 and r alone: in its closed form, the action goes by ``_tune_closed``
+        # with the action map as rows (low, high / low, high − low, log scale) and these indices
+        names = list(self.tuning)
+        self._closed_tuning = set(names) == {"cutoff_hz", CROSS_LINK_RATIO} and self.tuning["cutoff_hz"][0] > 0.0
+        self._scales = np.array([row[1:] for row in self._action_map], dtype=np.float64).T.copy()
+        self._closed_indices = (names.index("cutoff_hz"), names.index(CROSS_LINK_RATIO)) if self._closed_tuning else ()
+        self._closed_names = (*names, "k", "k_p")
+        self._closed_values = np.empty(len(names) + 2)  # (the action's values, then k, k_p)
         m = len(self.tuning)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float64)
         self.observation_structure.update(q_wb=(4,), gains=(m,))
@@ -254,8 +262,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         tuned = self._sim.estimators["tuned"]
         tuned.set_params(**self._initial)  # Estimator.reset keeps parameters
         # The coefficients the actions' gains are written into while they stay these: BISO's
-        # closed form tuned by f_c > 0 and r (valid at the box's corners, so k > 0 and k_p >= 0 inside)
-        closed = CROSS_LINK_RATIO in self.tuning and self.tuning["cutoff_hz"][0] > 0.0 and tuned._is_closed_form()
+        # closed form tuned by f_c > 0 and r alone (valid at the box's corners, so k > 0 and
+        # k_p >= 0 inside; any other tuned parameter takes set_params)
+        closed = self._closed_tuning and tuned._is_closed_form()
         self._closed_coef = tuned._coef if closed else None
         self._gains[:] = self._initial_gains
         self._first_period()
@@ -265,9 +274,13 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     def step(self, action: Any):
         self._require_running()
-        a = self._check_action(action)
-        if a.tolist() != self._gains.tolist():  # (lists: np.array_equal costs tens of µs in the loop)
-            self._set_gains(a)
+        tuned = self._sim.estimators["tuned"]
+        if tuned._coef is self._closed_coef:  # (see reset)
+            self._tune_closed(action, tuned)
+        else:
+            a = self._check_action(action)
+            if a.tolist() != self._gains.tolist():  # (lists: np.array_equal costs tens of µs in the loop)
+                self._set_gains(a)
         self._advance()
         info = self._measure()
         info["params"] = self._params_in_force()
@@ -279,23 +292,33 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _set_gains(self, a: np.ndarray) -> None:
-        """Set the tuned copy's parameters from a checked action. The values in force are
-        then the values the action stands for (with the cross-link ratio also the k and k_p
-        derived from them), recorded with the parameter record they made."""
+        """Set the tuned copy's parameters from a checked action (``set_params``). The values
+        in force are then the values the action stands for (with the cross-link ratio also
+        the k and k_p derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
         tuned = self._sim.estimators["tuned"]
-        if tuned._coef is self._closed_coef:  # (see reset) BISO's short path, the same numbers
-            k, kp = gains_from_cutoff(values["cutoff_hz"], self._reading)
-            kp *= values[CROSS_LINK_RATIO]
-            tuned._set_equal_gains(k, kp)
-            values.update(k=k, k_p=kp)
-        else:
-            changes = self._changes(values)
-            tuned.set_params(**changes)
-            if "k" in changes:
-                values.update(k=changes["k"], k_p=changes["k_p"])
+        changes = self._changes(values)
+        tuned.set_params(**changes)
+        if "k" in changes:
+            values.update(k=changes["k"], k_p=changes["k_p"])
         self._in_force = (tuned._params, values)
         self._gains[:] = a
+
+    def _tune_closed(self, action: Any, tuned: Any) -> None:
+        """``_check_action`` and ``_set_gains`` for BISO tuned by f_c and r in its closed
+        form (see reset): an action inside the bounds in one kernel call (``_tune_closed``:
+        the same numbers as set_params' short path), with the parameter record it made."""
+        a = self._action_array(action)
+        space = self.action_space
+        tune = (space.low, space.high, self._gains, self._scales, *self._closed_indices, self._reading == "L",
+                tuned._coef, self._closed_values)
+        changed = _tune_closed(a, *tune)
+        if changed < 0:  # not inside the bounds: refused (ValueError), or clipped and set
+            changed = _tune_closed(self._bounded_action(a), *tune)
+        if changed:
+            values = self._closed_values.tolist()
+            tuned._record_equal_gains(values[-2], values[-1])
+            self._in_force = (tuned._params, dict(zip(self._closed_names, values)))
 
     def _params_in_force(self) -> dict[str, float]:
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""

@@ -159,13 +159,21 @@ def test_same_seed_same_rollout_bit_for_bit(env_id, kwargs):
     assert not np.array_equal(a[5][0], c[5][0])
 
 
-@pytest.mark.parametrize(("env_id", "kwargs"), [CASES[0], CASES[2], CASES[4], CASES[5], CASES[6], CASES[7]],
-                         ids=[CASE_IDS[i] for i in (0, 2, 4, 5, 6, 7)])
+# GainTuning with a parameter tuned besides BISO's f_c and r (the gains' short path must not take it)
+THREE_TUNED = ("biso_cosim/GainTuning-v0", {"tuning": {"cutoff_hz": (0.05, 2.0, "log"),
+                                                       "cross_link_ratio": (0.0, 2.0, "linear"),
+                                                       "declination_rad": (-0.3, 0.3, "linear")}})
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), [CASES[0], CASES[2], CASES[4], CASES[5], CASES[6], THREE_TUNED,
+                                                CASES[7]],
+                         ids=[*(CASE_IDS[i] for i in (0, 2, 4, 5, 6)), "GainTuning-three-tuned", CASE_IDS[7]])
 def test_fast_paths_step_as_the_plain_ones_bit_for_bit(env_id, kwargs):
     """Each environment's own work inside the period kernel's call (``PeriodHook``) and
     GainTuning's short gain change give the steps of the plain paths (the work after the
     kernel, ``set_params``), through a restored state and a parameter change that make
-    the co-simulation plan its periods again and the gain change take the long path."""
+    the co-simulation plan its periods again and the gain change take the long path; what
+    the action tunes besides the gains reaches the estimator."""
     fast, plain = (gym.make(env_id, **SHORT, **kwargs) for _ in range(2))
     plain.unwrapped._period_hook = lambda: None
     for est in plain.unwrapped.sim.estimators.values():
@@ -175,7 +183,7 @@ def test_fast_paths_step_as_the_plain_ones_bit_for_bit(env_id, kwargs):
         env.reset(seed=9)
     tuned = fast.unwrapped.sim.estimators.get("tuned")  # GainTuning's
     if tuned is not None:
-        short = tuned.method == "biso" and "cross_link_ratio" in fast.unwrapped.tuning  # (BISO tuned by f_c and r)
+        short = tuned.method == "biso" and set(fast.unwrapped.tuning) == {"cutoff_hz", "cross_link_ratio"}
         assert (fast.unwrapped._closed_coef is tuned._coef) == short
     hooked = []
     for i in range(60):
@@ -193,10 +201,17 @@ def test_fast_paths_step_as_the_plain_ones_bit_for_bit(env_id, kwargs):
         assert not plain.unwrapped.sim._hook_ran
         if steps[0][2] or steps[0][3]:
             break
-    if fast.unwrapped.sim._lane_only:  # (not for two BISO+: the kernel runs one) all but a period or
-        assert sum(hooked) >= len(hooked) - 4  # two after the reset and the restored state
+    # an action that tunes more than gains makes new coefficients every step: no plan holds
+    new_coefficients = tuned is not None and not set(fast.unwrapped.tuning) <= {"cutoff_hz", "cross_link_ratio"}
+    if fast.unwrapped.sim._lane_only and not new_coefficients:  # (not for two BISO+: the kernel runs one)
+        assert sum(hooked) >= len(hooked) - 4  # all but a period or two after the reset and the restored state
     else:
         assert not any(hooked)
+    if tuned is not None:
+        assert tuned.params == plain.unwrapped.sim.estimators["tuned"].params
+        params = steps[0][4]["params"]
+        for name in set(params) - {"cutoff_hz", "cross_link_ratio", "k", "k_p"}:
+            assert getattr(tuned.params, name) == params[name]
 
 
 def test_episode_seeds_derive_from_the_reset_seed():
@@ -291,30 +306,31 @@ def test_step_before_reset_is_refused(env_id):
     assert isinstance(ResetNeeded("x"), ValueError)
 
 
-BAD_ACTIONS = [
-    (np.array([np.nan, 0.0, 0.0, 0.0]), "finite"),
-    (np.array([1.0, np.inf, 0.0, 0.0]), "finite"),
-    (np.zeros(3), "shape"),
-    (np.zeros((4, 1)), "shape"),
-    ("w", "shape|real numbers"),
-    (None, "shape|real numbers"),
-    (np.zeros(4), "zeros"),
-]
+def bad_actions(n):
+    """Actions every environment with n action values refuses, and the message that says why."""
+    return [(np.r_[np.nan, np.zeros(n - 1)], "finite"), (np.r_[1.0, np.inf, np.zeros(n - 2)], "finite"),
+            (np.zeros(n - 1), "shape"), (np.zeros((n, 1)), "shape"), ("w", "shape|real numbers"),
+            (None, "shape|real numbers")]
 
 
-@pytest.mark.parametrize(("action", "message"), BAD_ACTIONS)
-def test_bad_actions_raise_before_anything_changes(action, message):
-    env = gym.make("biso_cosim/AttitudeEstimation-v0", **SHORT)
-    reference = gym.make("biso_cosim/AttitudeEstimation-v0", **SHORT)
+BAD_ACTIONS = [("biso_cosim/AttitudeEstimation-v0", action, message) for action, message in bad_actions(4)] + [
+    ("biso_cosim/AttitudeEstimation-v0", np.zeros(4), "zeros"),
+    *(("biso_cosim/GainTuning-v0", action, message) for action, message in bad_actions(2)),
+    *(("biso_cosim/Driving-v0", action, message) for action, message in bad_actions(2))]
+
+
+@pytest.mark.parametrize(("env_id", "action", "message"), BAD_ACTIONS)
+def test_bad_actions_raise_before_anything_changes(env_id, action, message):
+    env, reference = gym.make(env_id, **SHORT), gym.make(env_id, **SHORT)
     env.reset(seed=3)
     reference.reset(seed=3)
-    good = np.array([1.0, 0.0, 0.0, 0.0])
+    good = np.array([1.0, 0.0, 0.0, 0.0]) if "Attitude" in env_id else np.array([0.5, -0.25])
     env.step(good)
     reference.step(good)
     with pytest.raises(ValueError, match=message):
         env.step(action)
     # the refused call changed nothing: the env goes on exactly like one that never saw it
-    assert data_equivalence(env.step(good), reference.step(good), exact=True)
+    assert data_equivalence(env.step(-good), reference.step(-good), exact=True)
 
 
 @pytest.mark.parametrize("env_id", list(ENV_IDS))

@@ -5,12 +5,18 @@ import math
 import numpy as np
 import pytest
 
-from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _driving_period,
-                                      _driving_view, _mean_angle, _mean_angles_to, _navigate_period, _push_window,
-                                      _route_ahead, _tuning_period)
+from types import SimpleNamespace
+
+from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _drive_action,
+                                      _driving_period, _driving_view, _mean_angle, _mean_angles_to, _navigate_period,
+                                      _push_window, _route_ahead, _tune_closed, _tuning_period)
+from biso_cosim.estimators import make_estimator
+from biso_cosim.estimators.biso import gains_from_cutoff
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
+from biso_cosim.vehicle.driver import DriverCommand, DriverState
+from biso_cosim.vehicle.sim import VehicleSim
 
 
 def push_reference(values, gyro, accel, mag, fresh):
@@ -130,6 +136,50 @@ def test_period_kernels_are_the_window_and_each_environments_parts(k):
         _navigate_period(q1, packed, sensordata, 29, 0.158, 0.005, want_pose, want_q_est)
     assert window.tolist() == want_window.tolist()
     assert pose.tolist() == want_pose.tolist() and q_est.tolist() == want_q_est.tolist()
+
+
+def test_drive_action_writes_the_controls_of_its_driver_command():
+    """Driving-v0's action in one kernel: the controls ``VehicleSim.apply`` writes for the
+    DriverCommand the action stands for, bit for bit (signed zeros too), and the driver's
+    progress before the step; an action outside the bounds or NaN writes nothing."""
+    actuators = np.array([5, 0, 1, 2, 3, 4], dtype=np.int64)  # steering, drive, four brakes
+    low, high, max_steer = np.array([-1.0, -1.0]), np.array([1.0, 1.0]), 0.6
+    state = DriverState()
+    state.array[S_S] = 12.5
+    for throttle, steering in [(0.3, -0.2), (-0.7, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, -1.0), (-1.0, 0.5)]:
+        expected = np.full(7, 9.0)
+        command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
+        VehicleSim.apply(SimpleNamespace(_ctrl=expected, _actuators=actuators), command)
+        ctrl = np.full(7, 9.0)
+        assert _drive_action(np.array([throttle, steering]), low, high, max_steer, ctrl, actuators, state.array) == 12.5
+        assert ctrl.tobytes() == expected.tobytes()
+    for action in ([1.5, 0.0], [0.0, -1.01], [0.0, np.nan], [-np.inf, 0.0]):
+        ctrl = np.full(7, 9.0)
+        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, ctrl, actuators, state.array))
+        assert (ctrl == 9.0).all()
+
+
+@pytest.mark.parametrize("reading", ["D", "L"])
+def test_tune_closed_sets_the_gains_a_new_estimator_has(reading):
+    """GainTuning-v0's action for BISO tuned by r and f_c in one kernel: the values of
+    ``params_from_action``'s expressions, ``gains_from_cutoff``, and the coefficients of an
+    estimator made with those gains, bit for bit; nothing for the gains in force, nothing
+    written for an action out of bounds."""
+    tuned = make_estimator("biso", 200.0, cutoff_hz=0.1, reading=reading)
+    scales = np.array([[0.0, 0.02], [math.nan, 50.0], [2.0, 0.98], [0.0, 1.0]])  # r linear in [0, 2], f_c log
+    low, high, gains, values = -np.ones(2), np.ones(2), np.zeros(2), np.empty(4)
+    tune = (low, high, gains, scales, 1, 0, reading == "L", tuned._coef, values)
+    a = np.array([0.3, -0.4])
+    assert _tune_closed(a, *tune) == 1
+    ratio, cutoff = 0.0 + 0.5 * (0.3 + 1.0) * 2.0, 0.02 * 50.0 ** (0.5 * (-0.4 + 1.0))
+    k, kp = gains_from_cutoff(cutoff, reading)
+    assert values.tolist() == [ratio, cutoff, k, kp * ratio] and gains.tolist() == a.tolist()
+    made = make_estimator("biso", 200.0, k=k, k_p=kp * ratio, reading=reading)
+    assert tuned._coef.tobytes() == made._coef.tobytes()
+    assert _tune_closed(a.copy(), *tune) == 0
+    for outside in ([1.2, 0.0], [0.0, math.nan]):
+        assert _tune_closed(np.array(outside), *tune) == -1
+        assert tuned._coef.tobytes() == made._coef.tobytes() and gains.tolist() == a.tolist()
 
 
 @pytest.mark.parametrize("use_truth", [False, True])

@@ -201,9 +201,15 @@ class BisoParams:
 
 def gains_from_cutoff(cutoff_hz: float, reading: str = "D") -> tuple[float, float]:
     """(k, k_p) whose poles −k ± i√3k_p have damping 1/√2 and natural frequency 2π f_c."""
+    return _cutoff_gains(float(cutoff_hz), reading != "D")
+
+
+@jit
+def _cutoff_gains(cutoff_hz, doubled):
+    """``gains_from_cutoff`` (``doubled``: reading "L"), for kernels too."""
     wn = 2.0 * math.pi * cutoff_hz
     k, kp = wn / math.sqrt(2.0), wn / math.sqrt(6.0)
-    return (k, kp) if reading == "D" else (2.0 * k, 2.0 * kp)
+    return (2.0 * k, 2.0 * kp) if doubled else (k, kp)
 
 
 def _resolved_gains(p: BisoParams) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -408,7 +414,7 @@ def _set_gains_in_place(coef: np.ndarray, params: BisoParams, k: float, kp: floa
     """Closed-mode coefficients ``coef`` with the equal gains k, k_p of ``params`` (the
     entries ``biso_coefficients`` derives from the gains, by its expressions), in place:
     the arrays a co-simulation's period kernel reads stay the same (``cosim._PeriodPlan``)."""
-    _set_closed_gains(coef, k, kp, 0.5 if params.reading == "L" else 1.0, _PATTERN_12, _T_GOST)
+    _write_equal_gains(coef, k, kp, params.reading == "L")
 
 
 # --------------------------------------------------------------------------------------
@@ -444,6 +450,12 @@ def _set_closed_gains(c, k, kp, scale, pattern, t):
     q = _closed_transition(c[_C_K], c[_C_KP], c[_C_WG], c[_C_WG + 1], c[_C_WG + 2], c[_C_H])
     for i in range(4):
         c[_C_EA + i] = q[i]
+
+
+@jit
+def _write_equal_gains(coef, k, kp, reading_l):
+    """``_set_gains_in_place``'s kernel (``reading_l``: the reading is "L"), for kernels too."""
+    _set_closed_gains(coef, k, kp, 0.5 if reading_l else 1.0, _PATTERN_12, _T_GOST)
 
 
 @jit(inline="always")
@@ -740,17 +752,17 @@ class BisoEstimator(Estimator):
 
     def _is_closed_form(self) -> bool:
         """Whether the correction is the closed form (pattern 12, k > 0): the gains then
-        change in place (``set_params``' short path, ``_set_equal_gains``)."""
+        change in place (``set_params``' short path, ``_record_equal_gains``)."""
         return bool(self._coef[_C_MODE] == MODE_CLOSED)
 
-    def _set_equal_gains(self, k: float, kp: float) -> None:
-        """``set_params(k=k, k_p=kp, cutoff_hz=None)`` by its short path without its checks,
-        for a caller that has made them: ``_is_closed_form()``, floats 0 < k < ∞, 0 ≤ kp < ∞
-        (a tuning loop's change every step, GainTuning-v0's)."""
+    def _record_equal_gains(self, k: float, kp: float) -> None:
+        """The parameter record of ``set_params(k=k, k_p=kp, cutoff_hz=None)`` by its short
+        path, for a caller that has made its checks (``_is_closed_form()``, floats 0 < k < ∞,
+        0 ≤ kp < ∞) and written the gains into ``_coef`` itself (``_write_equal_gains``
+        with this reading): a tuning loop's change every step, GainTuning-v0's."""
         params = object.__new__(BisoParams)
         params.__dict__.update(self._params.__dict__, k=k, k_p=kp, cutoff_hz=None)
         self._params = params
-        _set_gains_in_place(self._coef, params, k, kp)
 
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)
