@@ -163,14 +163,14 @@ class GainTuningEnv(CosimEnv, EzPickle):
         specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=specs)
         self.ACTION_NAMES = tuple(self.tuning)
-        # per tuned parameter: name, low, high / low, high − low, whether the scale is logarithmic
-        self._action_map = [(name, low, high / low if scale == "log" else math.nan, high - low, scale == "log")
-                            for name, (low, high, scale) in self.tuning.items()]
+        # the action's map, a column per tuned parameter: low, high / low, high − low, 1 for a
+        # logarithmic scale (``_values``; ``_tune_closed``)
+        self._scales = np.array([[low, high / low if scale == "log" else math.nan, high - low, scale == "log"]
+                                 for low, high, scale in self.tuning.values()], dtype=np.float64).T.copy()
         # BISO tuned by f_c > 0 and r alone: in its closed form, the action goes by ``_tune_closed``
-        # with the action map as rows (low, high / low, high − low, log scale) and these indices
+        # with these indices
         names = list(self.tuning)
         self._closed_tuning = set(names) == {"cutoff_hz", CROSS_LINK_RATIO} and self.tuning["cutoff_hz"][0] > 0.0
-        self._scales = np.array([row[1:] for row in self._action_map], dtype=np.float64).T.copy()
         self._closed_indices = (names.index("cutoff_hz"), names.index(CROSS_LINK_RATIO)) if self._closed_tuning else ()
         self._closed_names = (*names, "k", "k_p")
         self._closed_values = np.empty(len(names) + 2)  # (the action's values, then k, k_p)
@@ -228,7 +228,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def _values(self, action: list[float]) -> dict[str, float]:
         """``params_from_action`` of an action already a list of floats."""
         return {name: low * ratio ** (0.5 * (x + 1.0)) if log else low + 0.5 * (x + 1.0) * span
-                for (name, low, ratio, span, log), x in zip(self._action_map, action)}
+                for name, (low, ratio, span, log), x in zip(self.tuning, self._scales.T.tolist(), action)}
 
     def action_from_params(self, **values: float) -> np.ndarray:
         """The normalised action that sets ``values`` (every tuned parameter, within its range)."""
