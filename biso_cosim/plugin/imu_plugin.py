@@ -1,0 +1,391 @@
+"""``ImuPlugin``: the virtual MPU-9250 and attitude estimators attached to another
+simulator's vehicle (see the package docstring for the timing semantics)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from biso_cosim.estimators import Estimator, State, describe_estimator, estimator_inputs, make_estimator
+from biso_cosim.plugin import _kernels as K
+from biso_cosim.plugin.adapter import HostFrames
+from biso_cosim.plugin.output import EstimateOutput, PluginOutput, empty_estimate
+from biso_cosim.sensors import MPU9250, EarthField, MagneticEnvironment
+
+__all__ = ["ImuPlugin", "Mounting", "PluginState"]
+
+_TAKEN_INPUTS = frozenset({"imu_flags", "speed_mps"})  # optional estimator inputs the plug-in can give
+_NO_ROWS3 = np.empty((0, 3))
+_NO_ROWS = np.empty(0)
+
+
+@dataclass(frozen=True)
+class Mounting:
+    """Where the chip sits on the host's vehicle, in the host's body axes.
+
+    Args:
+        position_m: (3,) the chip's position relative to the point whose motion the host
+            gives (its "reference point": often the centre of mass), host body axes, m.
+        q_body_chip: rotation chip axes → host body axes, a unit quaternion in the host's
+            component order; None: the chip's axes are the host body axes.
+    """
+
+    position_m: Sequence[float] = (0.0, 0.0, 0.0)
+    q_body_chip: Sequence[float] | None = None
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.position_m, dtype=np.float64)
+        if r.shape != (3,) or not np.all(np.isfinite(r)):
+            raise ValueError(f"mounting.position_m must be 3 finite numbers (m, host body axes), got {self.position_m!r}")
+        object.__setattr__(self, "position_m", tuple(float(x) for x in r))
+        if self.q_body_chip is not None:
+            q = np.asarray(self.q_body_chip, dtype=np.float64)
+            if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(float(np.linalg.norm(q)) - 1.0) > 1e-6:
+                raise ValueError(f"mounting.q_body_chip must be a unit quaternion (4 finite numbers, |q| = 1), "
+                                 f"got {self.q_body_chip!r}")
+            object.__setattr__(self, "q_body_chip", tuple(float(x) for x in q))
+
+
+@dataclass(frozen=True, eq=False)
+class PluginState:
+    """The whole dynamic state of an ``ImuPlugin`` (``get_state``/``set_state``; picklable).
+
+    ``sensor``: ``MPU9250.get_state()``; ``estimators``: label → ``State``; ``ticks``: ticks
+    taken; ``t0_s``: the host time of the first tick (None before it); ``last_tick``: the
+    previous tick in package frames (q_wb (4), ω_b (3), v_w (3)), None before the first.
+    """
+
+    sensor: Mapping[str, np.ndarray]
+    estimators: Mapping[str, State]
+    ticks: int
+    t0_s: float | None
+    last_tick: np.ndarray | None = field(default=None)
+
+
+def _estimator_list(estimators: Any) -> list[tuple[str, str, dict[str, Any]]]:
+    """(label, name, params) of each entry of ``estimators``."""
+    if isinstance(estimators, str):
+        estimators = (estimators,)
+    if isinstance(estimators, Mapping):
+        items = list(estimators.items())
+    elif isinstance(estimators, (list, tuple)):
+        items = [(None, e) for e in estimators]
+    else:
+        raise TypeError(f"estimators must be a sequence of names or (name, params) pairs, or a dict label → "
+                        f"name / (name, params); got {estimators!r}")
+    out = []
+    for label, entry in items:
+        if isinstance(entry, str):
+            name, params = entry, {}
+        elif isinstance(entry, tuple) and len(entry) == 2 and isinstance(entry[0], str) and isinstance(entry[1], Mapping):
+            name, params = entry[0], dict(entry[1])
+        else:
+            raise TypeError(f"estimators: each entry must be a name or a (name, params) pair, got {entry!r}")
+        label = name if label is None else label
+        if not isinstance(label, str) or not label:
+            raise ValueError(f"estimators: labels must be non-empty strings, got {label!r}")
+        if any(label == o[0] for o in out):
+            raise ValueError(f"estimators: label {label!r} given twice (give a dict label → (name, params))")
+        out.append((label, name, params))
+    return out
+
+
+class ImuPlugin:
+    """A virtual MPU-9250 (with its AK8963) and attitude estimators on a host's vehicle.
+
+    Args:
+        tick_s: the host's truth period in s (its physics step): one call of ``step`` per
+            tick, or one call per block of consecutive ticks. It must be an integer multiple
+            or fraction of the chip's internal sampling periods (1 ms for the default
+            registers: 0.25, 0.5, 1, 2, 5, 20 ms ... are accepted; pybullet's default 1/240 s
+            is not).
+        frames: the host's conventions (``HostFrames``, a dict or a (world, body, quaternion)
+            tuple; default ENU, FLU, scalar first).
+        profile: the sensor's error profile (``"mpu9250_calibrated"`` by default, as the FMU;
+            ``"mpu9250"``, ``"ideal"``, a profile file or ``Profile``).
+        registers: the chip's configuration (``Registers`` or a dict of its fields).
+        mounting: ``Mounting`` (position and rotation of the chip in the host's body axes).
+        seed: draws the part's turn-on errors and its noise: the same seed gives the same
+            readings, bit for bit (the estimators are deterministic).
+        site: ``EarthField`` (site and date of the World Magnetic Model) or a
+            ``MagneticEnvironment`` (the Earth's field plus local disturbances); default
+            Saratov, 2024-05-01.
+        estimators: names (``biso_cosim.estimators.estimator_names()``), (name, params)
+            pairs, or a dict label → name / (name, params); default ``("biso_plus",)``. An
+            unset ``declination_rad`` takes the site's declination.
+        speed_from_velocity: give the estimators that take a speed (biso_plus) the forward
+            speed of the reference point from the velocity input ``v_w`` (required then at
+            every tick); their unset ``speed_point_b_m`` becomes the reference point seen
+            from the chip.
+        gravity_w: gravity in the host's world axes, m/s², to form the specific force from a
+            given acceleration (default standard gravity, down).
+        sensor_options: more keywords of ``MPU9250`` (``hard_iron_ut``, ``soft_iron``,
+            ``vibration``).
+    """
+
+    def __init__(self, *, tick_s: float, frames: Any = None, profile: Any = "mpu9250_calibrated",
+                 registers: Any = None, mounting: Mounting | None = None, seed: int | None = 0, site: Any = None,
+                 estimators: Any = ("biso_plus",), speed_from_velocity: bool = False, gravity_w: Any = None,
+                 sensor_options: Mapping[str, Any] | None = None) -> None:
+        if isinstance(tick_s, bool) or not isinstance(tick_s, (int, float, np.floating, np.integer)):
+            raise TypeError(f"tick_s must be a number of seconds, got {tick_s!r}")
+        if not (math.isfinite(tick_s) and tick_s > 0.0):
+            raise ValueError(f"tick_s must be positive and finite, got {tick_s!r}")
+        self.tick_s = float(tick_s)
+        self.frames = HostFrames.coerce(frames)
+        mounting = Mounting() if mounting is None else mounting
+        if not isinstance(mounting, Mounting):
+            raise TypeError(f"mounting must be a Mounting, got {type(mounting).__name__}")
+        self.mounting = mounting
+        self.position_b_m = self.frames.body_to_flu(mounting.position_m)  # FLU, from the reference point
+        q_chip = None if mounting.q_body_chip is None else self.frames.mounting_to_package(mounting.q_body_chip)
+        if site is None:
+            site = EarthField()
+        self.environment = site if isinstance(site, MagneticEnvironment) else MagneticEnvironment(site)
+        if not isinstance(speed_from_velocity, (bool, np.bool_)):
+            raise TypeError(f"speed_from_velocity must be True or False, got {speed_from_velocity!r}")
+        self.speed_from_velocity = bool(speed_from_velocity)
+        g = self.frames.standard_gravity_w() if gravity_w is None else np.asarray(gravity_w, dtype=np.float64)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ValueError(f"gravity_w must be 3 finite numbers (m/s², host world axes), got {gravity_w!r}")
+        self.gravity_enu = self.frames.world_to_enu(g)
+        try:
+            self.sensor = MPU9250(profile, seed=seed, registers=registers, mounting=q_chip,
+                                  input_rate_hz=1.0 / self.tick_s, **dict(sensor_options or {}))
+        except ValueError as exc:
+            if "input_rate_hz" in str(exc):
+                raise ValueError(f"tick_s = {self.tick_s!r} s (truth at {1.0 / self.tick_s:g} Hz) cannot drive the "
+                                 f"chip: {exc}") from None
+            raise
+        self.estimators: dict[str, Estimator] = {}
+        self._feeds: dict[str, tuple[bool, bool]] = {}  # label → (imu_flags, speed_mps)
+        for label, name, params in _estimator_list(estimators):
+            self.estimators[label] = self._make_estimator(label, name, params)
+        self._codes = np.zeros(6, dtype=np.int64)
+        self._codes[:3] = self.frames.codes
+        self._codes[4] = int(bool(np.any(self.position_b_m)))
+        self.reset()
+
+    def _make_estimator(self, label: str, name: str, params: dict[str, Any]) -> Estimator:
+        try:
+            inputs = estimator_inputs(name)
+        except ValueError as exc:
+            raise ValueError(f"estimators: {exc}") from None
+        missing = sorted(set(inputs) - _TAKEN_INPUTS - {"velocity_enu_mps", "dtheta_b"})
+        if missing:
+            raise ValueError(f"estimators: {name!r} needs input(s) {missing} that the plug-in does not give "
+                             "(GNSS-aided estimators need a GNSS receiver: use the co-simulation)")
+        known = {row["name"] for row in describe_estimator(name)["params"]}
+        if "declination_rad" in known and "declination_rad" not in params:
+            params["declination_rad"] = self.environment.earth.declination_rad
+        speed = self.speed_from_velocity and "speed_mps" in inputs
+        if speed and "speed_point_b_m" in known and "speed_point_b_m" not in params and np.any(self.position_b_m):
+            params["speed_point_b_m"] = tuple(float(-x) for x in self.position_b_m)
+        try:
+            est = make_estimator(name, self.sensor.output_rate_hz, **params)
+        except (ValueError, TypeError) as exc:
+            raise type(exc)(f"estimators[{label!r}] ({name}): {exc}") from None
+        if getattr(est.params, "gyro_step", "hold") != "hold":
+            raise ValueError(f"estimators[{label!r}]: gyro_step={est.params.gyro_step!r} needs the chip's increments, "
+                             "which the plug-in does not give; use gyro_step='hold'")
+        self._feeds[label] = ("imu_flags" in inputs, speed)
+        return est
+
+    # ---- properties ----------------------------------------------------------------------
+
+    @property
+    def output_rate_hz(self) -> float:
+        """The chip's accelerometer/gyro output data rate (Hz): the estimators' sample rate."""
+        return self.sensor.output_rate_hz
+
+    @property
+    def ticks(self) -> int:
+        """Ticks taken since the start (or the last ``reset``)."""
+        return self._ticks
+
+    @property
+    def next_tick_s(self) -> float | None:
+        """The host time the next tick must have (None before the first tick: any time)."""
+        return None if self._t0 is None else self._t0 + self._ticks * self.tick_s
+
+    # ---- state -----------------------------------------------------------------------------
+
+    def reset(self, seed: int | None = None) -> None:
+        """Back to before the first tick: the same part and noise stream start again (with an
+        int ``seed``, a part drawn anew from it); estimators forget everything."""
+        self.sensor.reset(seed)
+        for est in self.estimators.values():
+            est.reset()
+        self._ticks = 0
+        self._t0: float | None = None
+        self._last: np.ndarray | None = None
+
+    def get_state(self) -> PluginState:
+        """A copy of the whole dynamic state (sensor, estimators, clock, previous tick)."""
+        return PluginState(self.sensor.get_state(), {k: e.get_state() for k, e in self.estimators.items()},
+                           self._ticks, self._t0, None if self._last is None else self._last.copy())
+
+    def set_state(self, state: PluginState) -> None:
+        """Restore a state from ``get_state`` of this plug-in (or one built with the same
+        arguments); a state that does not fit raises ValueError and changes nothing."""
+        if not isinstance(state, PluginState):
+            raise TypeError(f"state must be a PluginState from get_state(), got {type(state).__name__}")
+        if set(state.estimators) != set(self.estimators):
+            raise ValueError(f"state holds estimators {sorted(state.estimators)}, this plug-in has "
+                             f"{sorted(self.estimators)}")
+        last = None if state.last_tick is None else np.array(state.last_tick, dtype=np.float64)
+        if (last is None) != (state.t0_s is None) or (last is not None and last.shape != (10,)) or state.ticks < 0:
+            raise ValueError("state is not a PluginState of a plug-in (ticks, t0_s and last_tick disagree)")
+        saved = self.get_state()
+        try:
+            self.sensor.set_state(state.sensor)
+            for label, est in self.estimators.items():
+                est.set_state(state.estimators[label])
+        except (ValueError, TypeError):
+            self.sensor.set_state(saved.sensor)
+            for label, est in self.estimators.items():
+                est.set_state(saved.estimators[label])
+            raise
+        self._ticks, self._t0, self._last = int(state.ticks), state.t0_s, last
+
+    # ---- stepping --------------------------------------------------------------------------
+
+    def step(self, t_s: Any, q_wb: Any, omega_b: Any, specific_force_b: Any = None, *, accel_w: Any = None,
+             alpha_b: Any = None, p_w: Any = None, v_w: Any = None, temperature_c: Any = None) -> PluginOutput:
+        """Take the host's truth of one tick (scalar ``t_s``, vectors (3,), ``q_wb`` (4,)) or of
+        a block of n consecutive ticks (``t_s`` (n,), vectors (n, 3), ``q_wb`` (n, 4)), in the
+        host's conventions, at the host's reference point:
+
+        * ``t_s``: host time; the first tick fixes t₀, tick k must come at t₀ + k·tick_s;
+        * ``q_wb``: attitude, world ← body; ``omega_b``: angular rate, rad/s, body axes;
+        * ``specific_force_b`` (m/s², body axes; +g up at rest), or instead ``accel_w``: the
+          acceleration in m/s², world axes (the plug-in subtracts ``gravity_w``);
+        * ``alpha_b``: angular acceleration, rad/s², body axes, for the lever arm (default:
+          the slope of ω between ticks);
+        * ``p_w`` (m) and ``v_w`` (m/s), world axes: position (for the magnetic field of
+          local disturbances) and velocity (for ``speed_from_velocity``); default zero;
+        * ``temperature_c``: die temperature (a number, or (n,)); default the profile's.
+
+        Returns the samples the chip latched on these ticks, the estimates after each and the
+        truth at their instants (``PluginOutput``). Bad input (NaN, a quaternion that is not
+        unit, a tick out of time, wrong shapes) raises ValueError naming the argument, and
+        changes nothing.
+        """
+        single = np.ndim(t_s) == 0
+        t = np.array([t_s], dtype=np.float64) if single else _series("t_s", t_s)
+        n = t.shape[0]
+        q = _rows("q_wb", q_wb, n, 4, single)
+        omega = _rows("omega_b", omega_b, n, 3, single)
+        if (specific_force_b is None) == (accel_w is None):
+            raise ValueError("give either specific_force_b (body axes) or accel_w (world axes), not "
+                             + ("both" if accel_w is not None else "neither"))
+        force = _rows("specific_force_b", specific_force_b, n, 3, single) if accel_w is None else _NO_ROWS3
+        accel = _NO_ROWS3 if accel_w is None else _rows("accel_w", accel_w, n, 3, single)
+        alpha = _NO_ROWS3 if alpha_b is None else _rows("alpha_b", alpha_b, n, 3, single)
+        p = _NO_ROWS3 if p_w is None else _rows("p_w", p_w, n, 3, single)
+        if self.speed_from_velocity and v_w is None and any(s for _, s in self._feeds.values()):
+            raise ValueError("v_w is required at every tick: the plug-in was built with speed_from_velocity=True")
+        v = _NO_ROWS3 if v_w is None else _rows("v_w", v_w, n, 3, single)
+        temp = _NO_ROWS if temperature_c is None or np.ndim(temperature_c) == 0 else \
+            _series("temperature_c", temperature_c, n)
+        if temperature_c is not None and np.ndim(temperature_c) == 0 and not math.isfinite(float(temperature_c)):
+            raise ValueError(f"temperature_c must be finite, got {temperature_c!r}")
+
+        codes = self._codes
+        codes[3] = accel_w is not None
+        codes[5] = self._last is not None
+        t0 = float(t[0]) if self._t0 is None else self._t0
+        prev_omega = self._last[4:7] if self._last is not None else _ZERO3
+        q_pkg, omega_pkg, f_chip, p_chip, v_pkg = (np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)),
+                                                  np.empty((n, 3)), np.empty((n, 3)))
+        code, row = K.prepare(codes, self.position_b_m, self.gravity_enu, self.tick_s, t0, self._ticks, prev_omega,
+                              t, q, omega, force, accel, alpha, p, v, temp, q_pkg, omega_pkg, f_chip, p_chip, v_pkg)
+        if code:
+            raise ValueError(self._bad_input(code, int(row), t, q, single))
+        mag_b = self.environment.field_b(q_pkg, p_chip, t)
+        temperature = temp if temp.shape[0] else (None if temperature_c is None else float(temperature_c))
+        samples = self.sensor.simulate(omega_pkg, f_chip, mag_b, temperature)
+
+        last = self._last if self._last is not None else np.concatenate((q_pkg[0], omega_pkg[0], v_pkg[0]))
+        first_tick = self._ticks
+        self._t0, self._ticks = t0, self._ticks + n
+        self._last = np.concatenate((q_pkg[-1], omega_pkg[-1], v_pkg[-1]))
+        k = samples.t_s.shape[0]
+        if k == 0:
+            return PluginOutput(_NO_ROWS, samples, _NO_Q, {label: EstimateOutput(empty_estimate(e.estimates_bias), _NO_Q,
+                                                                                 self.frames)
+                                                           for label, e in self.estimators.items()}, self.frames)
+        q_rows = np.concatenate((last[None, 0:4], q_pkg))
+        v_rows = np.concatenate((last[None, 7:10], v_pkg))
+        q_true, speed = np.empty((k, 4)), np.empty(k)
+        K.truth_at_samples(samples.t_s, self.tick_s, self.sensor.input_rate_hz, first_tick, q_rows, v_rows,
+                           q_true, speed)
+        estimates = {}
+        for label, est in self.estimators.items():
+            flags_in, speed_in = self._feeds[label]
+            extra: dict[str, Any] = {}
+            if flags_in:
+                extra["imu_flags"] = samples.flags
+            if speed_in:
+                extra["speed_mps"] = speed
+            estimates[label] = EstimateOutput(est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra),
+                                              q_true, self.frames)
+        return PluginOutput(t0 + samples.t_s, samples, q_true, estimates, self.frames)
+
+    def _bad_input(self, code: int, row: int, t: np.ndarray, q: np.ndarray, single: bool) -> str:
+        name = K.BAD_INPUTS[code]
+        where = "" if single else f" (row {row})"
+        due = float((t[0] if self._t0 is None else self._t0) + (self._ticks + row) * self.tick_s)
+        t = t.astype(object)  # Python floats in the messages
+        if code == 2:
+            before, tol = due - self.tick_s, K.TIME_TOL * self.tick_s
+            what = ("went backwards" if t[row] < before - tol else
+                    "repeats the previous tick" if t[row] <= before + tol else "came early")
+            return (f"t_s{where} {what}: got {t[row]!r} s, the next tick is due at {due!r} s "
+                    f"(tick_s = {self.tick_s!r} s)")
+        if code == 3:
+            return (f"t_s{where} = {t[row]!r} s is not the next tick, due at {due!r} s: ticks must come every "
+                    f"tick_s = {self.tick_s!r} s, without gaps (the tick period is fixed: the chip's rates "
+                    f"must divide it)")
+        if code == 5:
+            norm = float(np.linalg.norm(q[row]))
+            return f"q_wb{where} must be a unit quaternion (|q| = 1 ± {K.QUAT_NORM_TOL:g}), got |q| = {norm!r}"
+        if code == 1:
+            return f"t_s{where} must be finite, got {t[row]!r}"
+        return f"{name}{where} must be finite (no NaN or inf)"
+
+    def __repr__(self) -> str:
+        return (f"ImuPlugin(tick_s={self.tick_s!r}, frames={self.frames}, sensor={self.sensor!r}, "
+                f"estimators={list(self.estimators)})")
+
+
+_ZERO3 = np.zeros(3)
+_NO_Q = np.empty((0, 4))
+
+
+def _series(name: str, value: Any, n: int | None = None) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be real numbers, got {type(value).__name__}") from None
+    if a.ndim != 1 or a.shape[0] == 0 or (n is not None and a.shape[0] != n):
+        want = "a non-empty (n,) array" if n is None else f"shape ({n},) like t_s"
+        raise ValueError(f"{name} must have {want}, got shape {a.shape}")
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+
+
+def _rows(name: str, value: Any, n: int, width: int, single: bool) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be real numbers, got {type(value).__name__}") from None
+    if single:
+        if a.shape != (width,):
+            raise ValueError(f"{name} must have shape ({width},) for one tick, got {a.shape}")
+        return a.reshape(1, width)
+    if a.shape != (n, width):
+        raise ValueError(f"{name} must have shape ({n}, {width}) like t_s, got {a.shape}")
+    return a if a.flags.c_contiguous else np.ascontiguousarray(a)
