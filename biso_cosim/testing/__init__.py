@@ -236,3 +236,9 @@ class DriveResult:
         if worst > max_cross_track_m:
             raise AssertionError(f"{self._name()}: the driver was {worst:.2f} m off the route "
                                  f"(bound {max_cross_track_m:g} m)")
+
+
+# drives in another simulator (recorded truth through biso_cosim.plugin)
+from biso_cosim.testing.external import ExternalDrive, replay  # noqa: E402
+
+__all__ += ["replay", "ExternalDrive"]
