@@ -104,3 +104,15 @@ def test_frame_names_and_aliases():
             HostFrames(**kwargs)
     with pytest.raises(ValueError, match="frames: unknown field"):
         HostFrames.coerce({"up": "z"})
+
+
+@pytest.mark.parametrize("world, body, order", CONVENTIONS)
+def test_body_rate_from_consecutive_attitudes(world, body, order):
+    """A constant body rate recovered from two attitudes h apart, in the host's body axes."""
+    motion = make_motion("rotation", duration_s=0.01, fs_hz=1000.0)
+    q_host, vb, _, _, _ = _to_host(world, body, order, motion.q_wb, {"w": motion.omega_b}, {}, (1.0, 0, 0, 0),
+                                   np.zeros(3))
+    rate = HostFrames(world, body, order).body_rate(q_host[3], q_host[4], 0.001)
+    np.testing.assert_allclose(rate, vb["w"][4], atol=1e-9)
+    with pytest.raises(ValueError, match="dt_s must be positive"):
+        HostFrames().body_rate(q_host[3], q_host[4], 0.0)

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from biso_cosim.frames import quat_multiply
+from biso_cosim.frames import quat_conjugate, quat_multiply, quat_to_rotvec
 from biso_cosim.units import G0
 
 __all__ = ["HostFrames", "WORLDS", "BODIES", "QUATERNION_ORDERS"]
@@ -166,3 +166,12 @@ class HostFrames:
         """A rotation chip → host body (host quaternion order) as chip → FLU, scalar first."""
         q = self._wxyz(q_body_chip)
         return quat_multiply(Q_FRD_FLU, q) if self.body == "FRD" else q
+
+    def body_rate(self, q_prev_wb: Any, q_wb: Any, dt_s: float) -> np.ndarray:
+        """The mean body rate (rad/s, host body axes) that turns attitude ``q_prev_wb`` into
+        ``q_wb`` (host conventions) in ``dt_s``: rotvec(q_prev* ∘ q) / dt, for hosts whose
+        angular velocity is missing or in awkward axes (CARLA, BeamNG)."""
+        if not (np.isfinite(dt_s) and dt_s > 0.0):
+            raise ValueError(f"dt_s must be positive and finite, got {dt_s!r}")
+        a, b = self._wxyz(q_prev_wb), self._wxyz(q_wb)
+        return quat_to_rotvec(quat_multiply(quat_conjugate(a), b)) / dt_s

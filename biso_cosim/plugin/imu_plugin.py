@@ -13,7 +13,7 @@ from biso_cosim.estimators import Estimator, State, describe_estimator, estimato
 from biso_cosim.plugin import _kernels as K
 from biso_cosim.plugin.adapter import HostFrames
 from biso_cosim.plugin.output import EstimateOutput, PluginOutput, empty_estimate
-from biso_cosim.sensors import MPU9250, EarthField, MagneticEnvironment
+from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment, RawSamples
 
 __all__ = ["ImuPlugin", "Mounting", "PluginState"]
 
@@ -167,6 +167,12 @@ class ImuPlugin:
         self._codes = np.zeros(6, dtype=np.int64)
         self._codes[:3] = self.frames.codes
         self._codes[4] = int(bool(np.any(self.position_b_m)))
+        # what a tick that latches no sample returns (most ticks: the ODR is below the tick
+        # rate); its arrays are empty, so one object serves every such call
+        none = _empty_samples()
+        self._no_samples = PluginOutput(_NO_ROWS, none, _NO_Q, {
+            label: EstimateOutput(empty_estimate(e.estimates_bias), _NO_Q, self.frames)
+            for label, e in self.estimators.items()}, self.frames)
         self.reset()
 
     def _make_estimator(self, label: str, name: str, params: dict[str, Any]) -> Estimator:
@@ -315,9 +321,7 @@ class ImuPlugin:
         self._last = np.concatenate((q_pkg[-1], omega_pkg[-1], v_pkg[-1]))
         k = samples.t_s.shape[0]
         if k == 0:
-            return PluginOutput(_NO_ROWS, samples, _NO_Q, {label: EstimateOutput(empty_estimate(e.estimates_bias), _NO_Q,
-                                                                                 self.frames)
-                                                           for label, e in self.estimators.items()}, self.frames)
+            return self._no_samples
         q_rows = np.concatenate((last[None, 0:4], q_pkg))
         v_rows = np.concatenate((last[None, 7:10], v_pkg))
         q_true, speed = np.empty((k, 4)), np.empty(k)
@@ -364,6 +368,15 @@ class ImuPlugin:
 
 _ZERO3 = np.zeros(3)
 _NO_Q = np.empty((0, 4))
+
+
+def _empty_samples() -> ImuSamples:
+    """ImuSamples of no sample (read-only arrays: one object is shared by every such call)."""
+    arrays = [np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0, dtype=bool), np.empty(0),
+              np.empty(0, dtype=np.int32), np.empty((0, 10), dtype=np.int16), np.empty((0, 2), dtype=np.uint8)]
+    for a in arrays:
+        a.flags.writeable = False
+    return ImuSamples(*arrays[:7], RawSamples(arrays[7], arrays[8]))
 
 
 def _series(name: str, value: Any, n: int | None = None) -> np.ndarray:

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -36,7 +36,7 @@ from biso_cosim.plugin.adapter import HostFrames
 from biso_cosim.plugin.imu_plugin import ImuPlugin
 from biso_cosim.plugin.output import PluginOutput
 
-__all__ = ["RacecarBridge", "RacecarRun", "FRAMES", "WHEEL_RADIUS_M"]
+__all__ = ["RacecarBridge", "RacecarRun", "HostTick", "FRAMES", "WHEEL_RADIUS_M", "WHEEL_CONTACT"]
 
 FRAMES = HostFrames("ENU", "FLU", "xyzw")
 """pybullet's conventions for the racecar."""
@@ -62,6 +62,18 @@ def _pybullet():
     except ImportError:  # pragma: no cover - the extra is not installed
         raise ImportError("the pybullet bridge needs pybullet: pip install 'biso_cosim[pybullet]'") from None
     return pybullet, pybullet_data
+
+
+class HostTick(NamedTuple):
+    """The racecar's truth after one physics step, pybullet's frames (see the module docstring)."""
+
+    t_s: float
+    q_wb: np.ndarray
+    p_w: np.ndarray
+    v_w: np.ndarray
+    omega_w: np.ndarray
+    omega_b: np.ndarray
+    accel_w: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,8 +155,10 @@ class RacecarBridge:
         for hinge in _STEERING:
             pb.setJointMotorControl2(self.car, hinge, pb.POSITION_CONTROL, targetPosition=steer_rad, physicsClientId=c)
 
-    def _tick(self) -> tuple[np.ndarray, ...]:
-        """One physics step and the base's state after it (pybullet's frames)."""
+    def step_host(self) -> HostTick:
+        """One physics step of pybullet alone and the truth it gives the plug-in (for a loop
+        of your own: ``plugin.step(tick.t_s, tick.q_wb, tick.omega_b, accel_w=tick.accel_w,
+        p_w=tick.p_w, v_w=tick.v_w)``)."""
         pb, c = self._pb, self.client
         pb.stepSimulation(physicsClientId=c)
         pos, orn = pb.getBasePositionAndOrientation(self.car, physicsClientId=c)
@@ -155,7 +169,7 @@ class RacecarBridge:
         self._v_prev = v
         t = self._ticks * self.tick_s
         self._ticks += 1
-        return t, q, p, v, w, r_wb.T @ w, accel
+        return HostTick(t, q, p, v, w, r_wb.T @ w, accel)
 
     def drive(self, duration_s: float) -> RacecarRun:
         """Step the simulation for ``duration_s`` with the commands in force, the plug-in fed
@@ -165,7 +179,7 @@ class RacecarBridge:
             raise ValueError(f"duration_s must hold at least one tick of {self.tick_s} s, got {duration_s!r}")
         rows, outputs, block = [], [], []
         for i in range(n):
-            row = self._tick()
+            row = self.step_host()
             rows.append(row)
             if self.block_ticks == 1:
                 t, q, p, v, _, w_b, a = row
