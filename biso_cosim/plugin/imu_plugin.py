@@ -280,7 +280,7 @@ class ImuPlugin:
         unit, a tick out of time, wrong shapes) raises ValueError naming the argument, and
         changes nothing.
         """
-        single = np.ndim(t_s) == 0
+        single = isinstance(t_s, (float, int, np.floating, np.integer)) or np.ndim(t_s) == 0
         t = np.array([t_s], dtype=np.float64) if single else _series("t_s", t_s)
         n = t.shape[0]
         q = _rows("q_wb", q_wb, n, 4, single)
@@ -315,15 +315,18 @@ class ImuPlugin:
         temperature = temp if temp.shape[0] else (None if temperature_c is None else float(temperature_c))
         samples = self.sensor.simulate(omega_pkg, f_chip, mag_b, temperature)
 
-        last = self._last if self._last is not None else np.concatenate((q_pkg[0], omega_pkg[0], v_pkg[0]))
-        first_tick = self._ticks
-        self._t0, self._ticks = t0, self._ticks + n
-        self._last = np.concatenate((q_pkg[-1], omega_pkg[-1], v_pkg[-1]))
         k = samples.t_s.shape[0]
+        first_tick = self._ticks
+        if self._last is None:  # the chip starts settled: the tick before the first is the first
+            self._last = np.concatenate((q_pkg[0], omega_pkg[0], v_pkg[0]))
+        if k:  # the rows around the samples: the previous tick's, then this call's
+            q_rows = np.concatenate((self._last[None, 0:4], q_pkg))
+            v_rows = np.concatenate((self._last[None, 7:10], v_pkg))
+        self._t0, self._ticks = t0, self._ticks + n
+        last = self._last  # a copy leaves with get_state: this array is the plug-in's own
+        last[0:4], last[4:7], last[7:10] = q_pkg[-1], omega_pkg[-1], v_pkg[-1]
         if k == 0:
             return self._no_samples
-        q_rows = np.concatenate((last[None, 0:4], q_pkg))
-        v_rows = np.concatenate((last[None, 7:10], v_pkg))
         q_true, speed = np.empty((k, 4)), np.empty(k)
         K.truth_at_samples(samples.t_s, self.tick_s, self.sensor.input_rate_hz, first_tick, q_rows, v_rows,
                            q_true, speed)
