@@ -2,10 +2,12 @@
 
 import math
 
+import _route_reference as ref
 import numpy as np
 import pytest
 
 from biso_cosim.routes import load_route, parse_route, route_names
+from biso_cosim.routes._kernels import _feasible_speeds
 from biso_cosim.routes.path import densify
 
 
@@ -159,3 +161,133 @@ def test_more_bad_route_files():
     huge = {"type": "hill", "x_m": 0, "y_m": 0, "radius_m": 1e7, "height_m": 1}
     with pytest.raises(ValueError, match="cells"):
         parse_route(base(terrain={"feature": [huge]})).terrain.patches()
+
+
+# --------------------------------------------------------------------------------------
+# What the car can drive
+# --------------------------------------------------------------------------------------
+
+def test_car_limits_come_from_the_model():
+    from biso_cosim.routes import car_limits
+    from biso_cosim.routes.limits import STANDARD_GRAVITY_MPS2, USABLE_FRICTION
+    from biso_cosim.vehicle.model import vehicle_parameters
+
+    car, p = car_limits(), vehicle_parameters()
+    assert car.turning_radius_m == pytest.approx(p["wheelbase_m"] / math.tan(p["max_steer_rad"]))
+    mu = USABLE_FRICTION  # tyre friction 1 in car.xml
+    assert car.lateral_accel_mps2 == pytest.approx(mu * STANDARD_GRAVITY_MPS2)
+    # rear-axle traction with load transfer: a = μ g (b/L) / (1 − μ h/L); the grade is a/g
+    b_l, h_l = p["cg_behind_front_axle_m"] / p["wheelbase_m"], p["cg_height_m"] / p["wheelbase_m"]
+    assert car.accel_mps2 == pytest.approx(mu * STANDARD_GRAVITY_MPS2 * b_l / (1 - mu * h_l))
+    assert car.grade == pytest.approx(car.accel_mps2 / STANDARD_GRAVITY_MPS2)
+    assert car.decel_mps2 <= 4 * p["max_brake_torque_per_wheel_nm"] / p["wheel_radius_m"] / p["total_mass_kg"]
+    assert 50.0 < car.top_speed_mps < 60.0  # 204 km/h, the class figure
+    table = car.table()
+    assert all(name in table for name in ("top_speed_mps", "accel_mps2", "turning_radius_m", "grade"))
+
+
+def test_library_routes_are_within_the_car_limits():
+    import warnings
+
+    from biso_cosim.routes import RouteWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)
+        for name in route_names():
+            load_route(name)
+
+
+@pytest.mark.parametrize(("driving", "field"), [
+    ({"accel_mps2": 8.0}, "driving.accel_mps2 = 8 is beyond the car's largest acceleration"),
+    ({"decel_mps2": 12.0}, "driving.decel_mps2 = 12 is beyond the car's largest braking deceleration"),
+    ({"max_lateral_accel_mps2": 20.0}, "driving.max_lateral_accel_mps2 = 20 is beyond"),
+    ({"default_speed_mps": 500.0}, "driving.default_speed_mps = 500 is beyond the car's top speed"),
+])
+def test_driving_limits_beyond_the_car_are_capped_with_a_warning(driving, field):
+    from biso_cosim.routes import RouteWarning, car_limits
+
+    with pytest.warns(RouteWarning, match=field):
+        route = parse_route(base(driving=driving), source="my.toml")
+    name = next(iter(driving))
+    limit = {"accel_mps2": "accel_mps2", "decel_mps2": "decel_mps2", "max_lateral_accel_mps2": "lateral_accel_mps2",
+             "default_speed_mps": "top_speed_mps"}[name]
+    assert getattr(route.driving, name) == getattr(car_limits(), limit)
+
+
+def test_waypoint_speed_beyond_the_top_speed_is_capped_naming_the_waypoint():
+    from biso_cosim.routes import RouteWarning, car_limits
+
+    data = base()
+    data["waypoint"][1]["speed_mps"] = 500.0
+    with pytest.warns(RouteWarning, match=r"my.toml: waypoint\[1\].speed_mps = 500 m/s is beyond the car's top speed"):
+        route = parse_route(data, source="my.toml")
+    assert route.waypoints[1].speed_mps == car_limits().top_speed_mps
+    assert route.speed_free_mps.max() <= car_limits().top_speed_mps
+
+
+def test_corners_the_car_cannot_take_are_refused_naming_the_waypoint():
+    # a closed route of two waypoints turns back on itself at both (it parked the car forever)
+    two = {"name": "two", "description": "d", "closed": True,
+           "waypoint": [{"x_m": 0.0, "y_m": 0.0}, {"x_m": 50.0, "y_m": 0.0}]}
+    with pytest.raises(ValueError, match=r"two.toml: waypoint\[1\] turns by 180° without a fillet"):
+        parse_route(two, source="two.toml")
+    sharp = base()
+    sharp["waypoint"] = [{"x_m": 0.0, "y_m": 0.0}, {"x_m": 100.0, "y_m": 0.0},
+                         {"x_m": 100.0 + 50.0 * math.cos(math.radians(120)), "y_m": 50.0 * math.sin(math.radians(120))}]
+    with pytest.raises(ValueError, match=r"waypoint\[1\] turns by 120° without a fillet.*at most 90°"):
+        parse_route(sharp)
+    sharp["waypoint"][1]["radius_m"] = 2.0
+    with pytest.raises(ValueError, match=r"waypoint\[1\].radius_m = 2 m is tighter than the car's turning radius"):
+        parse_route(sharp)
+    sharp["waypoint"][1]["radius_m"] = 5.0
+    parse_route(sharp)  # a fillet the car can take
+    square = base()  # 90° without a fillet: the driver cuts it by about a metre, allowed
+    square["waypoint"][1].pop("radius_m")
+    parse_route(square)
+
+
+def test_a_closed_routes_start_corner_counts_only_when_driven_through():
+    triangle = [{"x_m": 0.0, "y_m": 0.0}, {"x_m": 100.0, "y_m": 0.0, "radius_m": 10.0},
+                {"x_m": 10.0, "y_m": 30.0, "radius_m": 10.0}]
+    parse_route({"name": "t", "description": "d", "closed": True, "waypoint": triangle})  # starts, ends at rest
+    with pytest.raises(ValueError, match=r"waypoint\[0\] turns by 1[0-9][0-9]° without a fillet"):
+        parse_route({"name": "t", "description": "d", "closed": True, "laps": 2, "waypoint": triangle})
+
+
+# --------------------------------------------------------------------------------------
+# Fast code against its slow reference
+# --------------------------------------------------------------------------------------
+
+def _path_arrays(p):
+    return (p.x_m, p.y_m, p.s_m, p.heading_rad, p.curvature_per_m, p.leg)
+
+
+@pytest.mark.parametrize("name", route_names())
+def test_densify_and_speed_passes_equal_their_references_to_the_bit(name):
+    route = load_route(name)
+    xy = np.array([[w.x_m, w.y_m] for w in route.waypoints])
+    radius = np.array([w.radius_m for w in route.waypoints])
+    fast, slow = densify(xy, radius, route.closed), ref.densify(xy, radius, route.closed)
+    for a, b in zip(_path_arrays(fast), _path_arrays(slow)):
+        assert np.array_equal(a, b)
+    rng = np.random.default_rng(len(name))
+    v = rng.uniform(0.0, 30.0, len(route.path))
+    v[rng.integers(0, v.size, 5)] = 0.0
+    ds = np.diff(route.path.s_m)
+    mine = v.copy()
+    _feasible_speeds(mine, ds, 1.3, 2.1, 2.0)
+    assert np.array_equal(mine, ref.feasible_speeds(v, ds, 1.3, 2.1))
+
+
+def test_densify_of_random_polylines_equals_the_reference():
+    rng = np.random.default_rng(7)
+    for closed in (False, True):
+        for _ in range(5):
+            angles = np.cumsum(rng.uniform(-1.2, 1.2, 12))
+            steps = rng.uniform(20.0, 60.0, 12)
+            xy = np.column_stack([np.cumsum(steps * np.cos(angles)), np.cumsum(steps * np.sin(angles))])
+            radius = np.where(rng.random(12) < 0.5, rng.uniform(4.0, 8.0, 12), 0.0)
+            radius[0] = radius[-1] = 0.0
+            fast, slow = densify(xy, radius, closed), ref.densify(xy, radius, closed)
+            for a, b in zip(_path_arrays(fast), _path_arrays(slow)):
+                assert np.array_equal(a, b)

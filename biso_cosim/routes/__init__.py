@@ -9,10 +9,12 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path as FilePath
 
-from biso_cosim.routes.route import DrivingLimits, Route, Site, Stop, Waypoint, parse_route, read_route_file
+from biso_cosim.routes.limits import CarLimits, car_limits
+from biso_cosim.routes.route import (DrivingLimits, Route, RouteWarning, Site, Stop, Waypoint, parse_route,
+                                    read_route_file)
 
-__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "load_route", "route_names", "parse_route",
-           "read_route_file", "library_table"]
+__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "RouteWarning", "CarLimits", "car_limits",
+           "load_route", "route_names", "parse_route", "read_route_file", "library_table"]
 
 _LIBRARY = resources.files("biso_cosim.routes").joinpath("library")
 

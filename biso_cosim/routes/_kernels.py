@@ -1,4 +1,4 @@
-"""Numba kernels of the route layer: the driver's path search."""
+"""Numba kernels of the route layer: the driver's path search, the speed profile's limits."""
 
 from __future__ import annotations
 
@@ -42,3 +42,19 @@ def _locate(xs, ys, ss, x, y, lo, hi):
     length = math.sqrt(max(dx * dx + dy * dy, 1e-24))
     cross = (dx * (y - py) - dy * (x - px)) / length
     return i, ss[i] + best_t * (ss[i + 1] - ss[i]), cross
+
+
+@jit
+def _feasible_speeds(v, ds, accel, decel, square):
+    """Lower the speeds ``v`` (in place) to what the acceleration limits allow between samples
+    ``ds`` apart: a forward pass ``v_i² ≤ v_{i−1}² + 2·accel·ds`` and a backward pass with decel.
+
+    ``square`` is 2.0, passed in so that v² is libm's pow(v, 2) as in the plain-Python passes
+    this replaces (a constant exponent would become v·v, which differs in the last bit) and the
+    library's speed profiles stay the same to the bit.
+    """
+    n = v.shape[0]
+    for i in range(1, n):
+        v[i] = min(v[i], math.sqrt(math.pow(v[i - 1], square) + 2.0 * accel * ds[i - 1]))
+    for i in range(n - 2, -1, -1):
+        v[i] = min(v[i], math.sqrt(math.pow(v[i + 1], square) + 2.0 * decel * ds[i]))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
+from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _feasible_speeds, _locate
 
 __all__ = ["Path", "densify", "speed_profile"]
 
@@ -105,20 +105,19 @@ def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float
                 f"{tangent[i] + tangent[i + 1]:.1f} m but the leg is {lengths[i]:.1f} m long; "
                 "reduce radius_m or move the waypoints apart"
             )
+    # straight pieces of all legs at once: from the end of one fillet to the start of the next
+    u = np.diff(nodes, axis=0) / lengths[:, None]
+    a = nodes[:-1] + tangent[:-1, None] * u
+    b = nodes[1:] - tangent[1:, None] * u
+    straight = np.array([float((q - p) @ w) for p, q, w in zip(a, b, u)])  # as a 2-vector product, to the bit
+    count = np.where(straight < 1e-6, 0, np.maximum(np.ceil(straight / spacing_m), 1)).astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(count)])
+    which = np.repeat(np.arange(nlegs), count)
+    t = (np.arange(first[-1]) - first[which]) / count[which]
+    line_x = a[which, 0] + t * (b[which, 0] - a[which, 0])
+    line_y = a[which, 1] + t * (b[which, 1] - a[which, 1])
+    heading = [math.atan2(q[1] - p[1], q[0] - p[0]) for p, q in zip(a, b)]
     xs, ys, hs, ks, legs = [], [], [], [], []
-
-    def emit_line(p0, p1, leg, u):
-        length = float((p1 - p0) @ u)
-        if length < 1e-6:  # the fillets take the whole leg (up to rounding)
-            return
-        m = max(int(math.ceil(length / spacing_m)), 1)
-        t = np.arange(m) / m
-        heading = math.atan2(p1[1] - p0[1], p1[0] - p0[0])
-        xs.append(p0[0] + t * (p1[0] - p0[0]))
-        ys.append(p0[1] + t * (p1[1] - p0[1]))
-        hs.append(np.full(m, heading))
-        ks.append(np.zeros(m))
-        legs.append(np.full(m, leg))
 
     def emit_arc(start, heading0, radius, turn, leg):
         arc = radius * abs(turn)
@@ -135,13 +134,15 @@ def densify(xy: np.ndarray, radius_m: np.ndarray, closed: bool, spacing_m: float
         legs.append(np.full(m, leg))
 
     for i in range(nlegs):
-        p0, p1 = nodes[i], nodes[i + 1]
-        u = (p1 - p0) / lengths[i]
-        a = p0 + tangent[i] * u
-        b = p1 - tangent[i + 1] * u
-        emit_line(a, b, i % n, u)
+        if count[i]:
+            lo, hi = first[i], first[i + 1]
+            xs.append(line_x[lo:hi])
+            ys.append(line_y[lo:hi])
+            hs.append(np.full(count[i], heading[i]))
+            ks.append(np.zeros(count[i]))
+            legs.append(np.full(count[i], i % n))
         if tangent[i + 1] > 0.0:
-            emit_arc(b, math.atan2(u[1], u[0]), radius_m[i + 1], turns[i + 1], (i + 1) % n)
+            emit_arc(b[i], math.atan2(u[i, 1], u[i, 0]), radius_m[i + 1], turns[i + 1], (i + 1) % n)
     end = nodes[-1]
     xs.append(np.array([end[0]]))
     ys.append(np.array([end[1]]))
@@ -186,9 +187,5 @@ def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mp
     with np.errstate(divide="ignore"):
         v = np.minimum(v, np.sqrt(max_lateral_accel_mps2 / np.maximum(kappa, 1e-12)))
     v[list(zero_at)] = 0.0
-    ds = np.diff(path.s_m)
-    for i in range(1, v.shape[0]):
-        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2.0 * accel_mps2 * ds[i - 1]))
-    for i in range(v.shape[0] - 2, -1, -1):
-        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2.0 * decel_mps2 * ds[i]))
+    _feasible_speeds(v, np.diff(path.s_m), float(accel_mps2), float(decel_mps2), 2.0)
     return v

@@ -53,6 +53,14 @@ and ends there at rest, heading along the first leg (or against it, if that leg 
 reverse). Where the direction of travel changes (a cusp: the leg before a waypoint and the
 leg after it differ in ``reverse``), the car stops for ``max(stop_s, 1 s)``; a cusp must not
 be rounded.
+
+What the car can drive (:func:`biso_cosim.routes.limits.car_limits`) bounds a route: a
+fillet tighter than the car's turning radius, or a corner without a fillet that turns by more
+than 90° (a closed route of two waypoints turns back by 180°), is refused naming the
+waypoint; a target speed above the car's top speed, or ``accel_mps2``, ``decel_mps2`` or
+``max_lateral_accel_mps2`` above what the tyres and the drive allow, is capped to the car's
+limit with a :class:`RouteWarning` naming the field. In curves the speed profile itself keeps
+the target within ``sqrt(max_lateral_accel_mps2/|curvature|)``.
 """
 
 from __future__ import annotations
@@ -60,16 +68,24 @@ from __future__ import annotations
 import datetime
 import math
 import tomllib
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path as FilePath
 
 import numpy as np
 
+from biso_cosim.routes.limits import MAX_UNROUNDED_TURN_RAD, car_limits
 from biso_cosim.routes.path import Path, densify, speed_profile
 from biso_cosim.vehicle.terrain import Terrain
 
-__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "GnssOutageZone", "parse_route", "read_route_file"]
+__all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "GnssOutageZone", "RouteWarning", "parse_route",
+           "read_route_file"]
+
+
+class RouteWarning(UserWarning):
+    """A route (or an imported track) was changed to be drivable: a value capped to the car's
+    limit, a track smoothed further than asked."""
 
 SPACING_M = 0.25
 """Spacing of the dense path samples."""
@@ -398,11 +414,63 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
             half_width_m=_number(zone["half_width_m"], f"{label}.half_width_m", minimum=0.0, strict=True),
             label=str(zone.get("label", ""))))
 
+    driving, waypoints = _within_car_limits(driving, waypoints, closed, laps, where)
     route = Route(name=data["name"], description=data["description"], excites=data.get("excites", ""),
                   closed=closed, laps=laps, waypoints=tuple(waypoints), driving=driving, site=site,
                   terrain=terrain, gnss_outages=tuple(outages), source=source)
     route.path  # noqa: B018 -- build now so that geometry errors surface at load time
     return route
+
+
+def _within_car_limits(driving: DrivingLimits, waypoints: list[Waypoint], closed: bool, laps: int,
+                       where: str) -> tuple[DrivingLimits, list[Waypoint]]:
+    """The driving limits and waypoints capped to what the car can do (with a RouteWarning per
+    field); ValueError naming the waypoint for a corner the car cannot take."""
+    car = car_limits()
+    n = len(waypoints)
+    for i, wp in enumerate(waypoints):
+        if 0.0 < wp.radius_m < car.turning_radius_m:
+            raise ValueError(f"{where}: waypoint[{i}].radius_m = {wp.radius_m:g} m is tighter than the car's "
+                             f"turning radius of {car.turning_radius_m:.2f} m")
+    # unrounded corners that are not cusps; a closed route's start corner only if the car
+    # drives through it (laps > 1)
+    xy = np.array([[w.x_m, w.y_m] for w in waypoints])
+    into = xy - np.roll(xy, 1, axis=0)  # the leg arriving at each waypoint
+    out = np.roll(xy, -1, axis=0) - xy  # the leg leaving it
+    turn = np.abs(np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0], np.einsum("ij,ij->i", into, out)))
+    reverse = np.array([w.reverse for w in waypoints])
+    candidate = ((np.array([w.radius_m for w in waypoints]) == 0.0) & (reverse == np.roll(reverse, 1))
+                 & (np.hypot(*into.T) > 0.0) & (np.hypot(*out.T) > 0.0) & (turn > MAX_UNROUNDED_TURN_RAD + 1e-9))
+    if not closed:
+        candidate[[0, n - 1]] = False
+    elif laps == 1:
+        candidate[0] = False
+    if candidate.any():
+        i = int(np.flatnonzero(candidate)[0])
+        raise ValueError(f"{where}: waypoint[{i}] turns by {math.degrees(turn[i]):.0f}° without a fillet; the car "
+                         f"takes at most {math.degrees(MAX_UNROUNDED_TURN_RAD):.0f}° that way: give it a "
+                         f"radius_m of at least {car.turning_radius_m:.1f} m, add waypoints, or make the car "
+                         "stop and reverse there")
+    capped = {}
+    for name, limit, what in (("default_speed_mps", car.top_speed_mps, "top speed"),
+                              ("accel_mps2", car.accel_mps2, "largest acceleration"),
+                              ("decel_mps2", car.decel_mps2, "largest braking deceleration"),
+                              ("max_lateral_accel_mps2", car.lateral_accel_mps2, "largest lateral acceleration")):
+        value = getattr(driving, name)
+        if value > limit:
+            warnings.warn(f"{where}: driving.{name} = {value:g} is beyond the car's {what} ({limit:.2f}); "
+                          f"capped to it", RouteWarning, stacklevel=3)
+            capped[name] = limit
+    if capped:
+        driving = replace(driving, **capped)
+    fast = [i for i, wp in enumerate(waypoints) if wp.speed_mps is not None and wp.speed_mps > car.top_speed_mps]
+    if fast:
+        i = fast[0]
+        more = f" (and {len(fast) - 1} more waypoint(s))" if len(fast) > 1 else ""
+        warnings.warn(f"{where}: waypoint[{i}].speed_mps = {waypoints[i].speed_mps:g} m/s{more} is beyond the car's "
+                      f"top speed ({car.top_speed_mps:.1f} m/s); capped to it", RouteWarning, stacklevel=3)
+        waypoints = [replace(wp, speed_mps=car.top_speed_mps) if k in fast else wp for k, wp in enumerate(waypoints)]
+    return driving, waypoints
 
 
 def _boolean(value, where: str) -> bool:

@@ -1,0 +1,98 @@
+"""What the car can drive: the bounds that route files and imported tracks are checked against.
+
+One record, :class:`CarLimits`, holds them with the source of each number. Most come from
+the compiled car model through :func:`biso_cosim.vehicle.model.vehicle_parameters` (the MJCF
+is the one source of the car's geometry, torques and tyre friction); where the model has no
+figure yet (it has no engine: no top speed), a published figure of the car's class stands
+in, named in ``sources``.
+
+Friction limits use the fraction of the tyres' friction coefficient μ that the scripted
+driver may ask for, ``USABLE_FRICTION``: the sphere tyres steer kinematically up to 0.65 g
+and slide suddenly at 0.76 g with μ = 1 (DESIGN.md §11), so a route that asks for more
+leaves the road. The same fraction bounds traction, braking and the climbable grade.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cache
+
+__all__ = ["CarLimits", "car_limits", "USABLE_FRICTION", "CLASS_TOP_SPEED_MPS", "STANDARD_GRAVITY_MPS2",
+           "MAX_UNROUNDED_TURN_RAD"]
+
+STANDARD_GRAVITY_MPS2 = 9.80665
+
+USABLE_FRICTION = 0.65
+"""Fraction of μ a route may use (sphere tyres: kinematic to 0.65 g, slide at 0.76 g; DESIGN.md §11)."""
+
+CLASS_TOP_SPEED_MPS = 204.0 / 3.6
+"""Top speed of an 85 kW compact hatchback: VW Golf VII 1.0 TSI (85 kW, 200 N m), 204 km/h by the
+maker's figures (caradisiac.com, "Volkswagen présente une Golf 1,0 l trois cylindres"). Stands in
+until the car model has a drivetrain."""
+
+MAX_UNROUNDED_TURN_RAD = math.radians(90.0)
+"""Largest turn at a waypoint without a fillet (and not a change of direction): the driver cuts
+such a corner, by 1.4 m at 90° and 2.2 m at 120° at 8 m/s (measured with the scripted driver)."""
+
+
+@dataclass(frozen=True)
+class CarLimits:
+    """The car's limits that a route must respect, SI units; ``sources`` says where each comes from."""
+
+    top_speed_mps: float
+    """Highest target speed."""
+    accel_mps2: float
+    """Largest longitudinal acceleration: drive torque and traction of the driven (rear) axle."""
+    decel_mps2: float
+    """Largest braking deceleration: brake torque and traction of all four wheels."""
+    lateral_accel_mps2: float
+    """Largest lateral acceleration in curves."""
+    turning_radius_m: float
+    """Smallest radius of the rear axle's path at full steering lock (bicycle model)."""
+    grade: float
+    """Steepest grade (rise over run) the car can climb from rest on the driven axle's traction."""
+    sources: dict = field(default_factory=dict, compare=False)
+
+    def table(self) -> str:
+        """The limits as a Markdown table with their sources (docs/routes.md shows it)."""
+        rows = ["| limit | value | source |", "|---|---|---|"]
+        for name, unit, scale in (("top_speed_mps", "m/s", 1.0), ("accel_mps2", "m/s²", 1.0),
+                                  ("decel_mps2", "m/s²", 1.0), ("lateral_accel_mps2", "m/s²", 1.0),
+                                  ("turning_radius_m", "m", 1.0), ("grade", "%", 100.0)):
+            rows.append(f"| `{name}` | {getattr(self, name) * scale:.2f} {unit} | {self.sources[name]} |")
+        return "\n".join(rows)
+
+
+@cache
+def car_limits() -> CarLimits:
+    """The limits of the library's car (biso_cosim/vehicle/car.xml), read from its compiled model."""
+    from biso_cosim.vehicle.model import car_spec, vehicle_parameters
+
+    model = car_spec().compile()
+    p = vehicle_parameters(model)
+    mu = float(model.geom("fl_tyre").friction[0]) * USABLE_FRICTION
+    g = STANDARD_GRAVITY_MPS2
+    m, wheelbase, h = p["total_mass_kg"], p["wheelbase_m"], p["cg_height_m"]
+    rear_share = p["cg_behind_front_axle_m"] / wheelbase  # static load on the driven rear axle
+    # rear-axle traction with the load transfer of the acceleration a itself:
+    # μ·m·(g·b/L + a·h/L) = m·a  →  a = μ·g·(b/L) / (1 − μ·h/L)
+    traction = mu * g * rear_share / (1.0 - mu * h / wheelbase)
+    torque = p["max_drive_torque_nm"] / p["wheel_radius_m"] / m
+    brakes = 4.0 * p["max_brake_torque_per_wheel_nm"] / p["wheel_radius_m"] / m
+    # climbing from rest on a grade θ: μ·(cos θ·b/L + sin θ·h/L) = sin θ
+    grade = mu * rear_share / (1.0 - mu * h / wheelbase)
+    friction = f"tyre friction μ = {mu / USABLE_FRICTION:g} (car.xml) × {USABLE_FRICTION} usable (DESIGN.md §11)"
+    sources = {
+        "top_speed_mps": "class figure: VW Golf VII 1.0 TSI, 85 kW, 204 km/h (the model has no engine yet)",
+        "accel_mps2": (f"rear-axle traction, {friction}, {rear_share:.0%} static load, load transfer "
+                       f"h/L = {h / wheelbase:.3f}; the drive torque alone allows {torque:.1f} m/s²"),
+        "decel_mps2": f"{friction}, all four wheels braked; the brakes alone allow {brakes:.1f} m/s²",
+        "lateral_accel_mps2": friction,
+        "turning_radius_m": (f"wheelbase {wheelbase:g} m / tan(max steer {p['max_steer_rad']:g} rad), "
+                             "car.xml"),
+        "grade": f"rear-axle traction from rest, {friction}",
+    }
+    return CarLimits(top_speed_mps=CLASS_TOP_SPEED_MPS, accel_mps2=min(traction, torque),
+                     decel_mps2=min(mu * g, brakes), lateral_accel_mps2=mu * g,
+                     turning_radius_m=wheelbase / math.tan(p["max_steer_rad"]), grade=grade, sources=sources)
