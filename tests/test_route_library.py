@@ -1,4 +1,5 @@
-"""The shipped routes, driven with the test kit; terrain features; importing real tracks.
+"""The shipped routes, driven with the test kit; terrain features; importing real tracks (the
+import's own tests, with the bad files it refuses, are in test_route_import.py).
 
 Short routes are driven to their end here; long ones for their first minute (the car, the
 driver and the terrain must behave from the start). Whole drives of every route are the job
@@ -126,25 +127,6 @@ def test_import_a_csv_with_speeds(tmp_path):
     assert not data["closed"] and "terrain" not in data
     speeds = [w["speed_mps"] for w in data["waypoint"]]
     assert 5.0 <= min(speeds) and max(speeds) <= 7.0
-
-
-@pytest.mark.parametrize(("name", "text", "message"), [
-    ("bad.csv", "lat_deg,lon_deg\n51.5,46.0\n51.5,abc\n", r"line 3: expected numbers"),
-    ("bad.csv", "lat,lon\n51.5,46.0\n", r"line 1: missing column 'lat_deg'"),
-    ("bad.csv", "lat_deg,lon_deg\n95,46.0\n51.5,46.0\n", r"line 2: lat_deg must be in \[-90, 90\]"),
-    ("bad.csv", "lat_deg,lon_deg,t_s\n51.5,46.0,5\n51.5001,46.0,4\n", r"line 3: t_s is earlier"),
-    ("bad.gpx", '<gpx version="1.1"><trk><trkseg>\n<trkpt lat="51.5" lon="46"/>\n<trkpt lon="46"/>\n'
-                "</trkseg></trk></gpx>", r"line 3: <trkpt> has lat=None"),
-    ("bad.gpx", '<gpx version="1.1"><trk><trkseg><trkpt lat="51.5" lon="46">\n</trkseg></trk></gpx>',
-     r"not valid XML.*line 2"),
-    ("one.gpx", '<gpx version="1.1"><trk><trkseg><trkpt lat="51.5" lon="46"/></trkseg></trk></gpx>',
-     "at least two track points"),
-    ("track.kml", "<kml/>", r"expected a \.gpx or \.csv"),
-])
-def test_bad_track_files_say_where(tmp_path, name, text, message):
-    (tmp_path / name).write_text(text)
-    with pytest.raises(ValueError, match=message):
-        read_track(tmp_path / name)
 
 
 def test_imported_heights_are_not_the_earths_curvature(tmp_path):

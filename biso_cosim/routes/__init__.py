@@ -31,6 +31,8 @@ def load_route(name_or_path: str | FilePath | Route) -> Route:
     text = str(name_or_path)
     if text.endswith(".toml") or "/" in text or "\\" in text:
         path = FilePath(text)
+        if path.is_dir():
+            raise ValueError(f"route file {text!r} is a directory; expected a .toml file")
         if not path.is_file():
             raise FileNotFoundError(f"route file {text!r} does not exist")
         return read_route_file(path)

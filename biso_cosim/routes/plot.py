@@ -10,9 +10,28 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from biso_cosim.routes.files import atomic_output  # noqa: E402
 from biso_cosim.routes.route import Route  # noqa: E402
 
 __all__ = ["plot_route"]
+
+# Terrain heights are evaluated at most this many (point, road segment) pairs at a time: a road
+# feature finds each point's nearest segment among all of its segments.
+_PAIRS_PER_CALL = 2_000_000
+_PROFILE_SAMPLES = 4000
+
+
+def _heights(route: Route, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Terrain heights at x, y, in pieces small enough for the road features' search."""
+    segments = max([len(getattr(f, "points", ())) for f in route.terrain.features] + [1])
+    chunk = max(_PAIRS_PER_CALL // segments, 1)
+    flat_x, flat_y = np.broadcast_arrays(x, y)
+    shape = flat_x.shape
+    flat_x, flat_y = flat_x.ravel(), flat_y.ravel()
+    out = np.empty(flat_x.shape[0])
+    for lo in range(0, flat_x.shape[0], chunk):
+        out[lo:lo + chunk] = route.terrain.height(flat_x[lo:lo + chunk], flat_y[lo:lo + chunk])
+    return out.reshape(shape)
 
 
 def plot_route(route: Route, path: str | Path) -> Path:
@@ -26,10 +45,11 @@ def plot_route(route: Route, path: str | Path) -> Path:
     pad = 30.0
     x0, x1 = p.x_m.min() - pad, p.x_m.max() + pad
     y0, y1 = p.y_m.min() - pad, p.y_m.max() + pad
-    nx = 400
-    ny = max(int(nx * (y1 - y0) / max(x1 - x0, 1e-6)), 50)
+    segments = max([len(getattr(f, "points", ())) for f in route.terrain.features] + [1])
+    nx = 400 if segments < 2000 else 100  # a long imported road: a coarser shading
+    ny = max(int(nx * (y1 - y0) / max(x1 - x0, 1e-6)), nx // 8)
     xs, ys = np.linspace(x0, x1, nx), np.linspace(y0, y1, ny)
-    heights = route.terrain.height(xs[None, :], ys[:, None])
+    heights = _heights(route, xs[None, :], ys[:, None])
     if np.ptp(heights) > 0:
         shade = ax.imshow(heights, origin="lower", extent=(x0, x1, y0, y1), cmap="terrain", alpha=0.6,
                           vmin=min(0.0, heights.min()), vmax=max(heights.max(), 1e-3))
@@ -57,7 +77,8 @@ def plot_route(route: Route, path: str | Path) -> Path:
                  f"{summary['nominal_duration_s']:.0f} s; excites: {route.excites}", fontsize=9)
 
     ax_z = fig.add_subplot(grid[1])
-    ax_z.plot(p.s_m, route.terrain.height(p.x_m, p.y_m), color="tab:brown")
+    along = np.unique(np.linspace(0, len(p) - 1, min(len(p), _PROFILE_SAMPLES)).astype(np.int64))
+    ax_z.plot(p.s_m[along], _heights(route, p.x_m[along], p.y_m[along]), color="tab:brown")
     ax_z.set_ylabel("elevation (m)")
     ax_z.grid(alpha=0.3)
     ax_v = fig.add_subplot(grid[2], sharex=ax_z)
@@ -65,6 +86,9 @@ def plot_route(route: Route, path: str | Path) -> Path:
     ax_v.set_ylabel("target speed (km/h)")
     ax_v.set_xlabel("distance along the route (m)")
     ax_v.grid(alpha=0.3)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    try:
+        with atomic_output(path) as temporary:
+            fig.savefig(temporary, dpi=100)
+    finally:
+        plt.close(fig)
     return path

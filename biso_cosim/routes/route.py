@@ -496,9 +496,13 @@ def _longitude(value, where):
 def read_route_file(path: str | FilePath) -> Route:
     """Read and validate a route file."""
     path = FilePath(path)
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory; expected a .toml route file")
     try:
         with path.open("rb") as handle:
             data = tomllib.load(handle)
     except tomllib.TOMLDecodeError as exc:
         raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte {exc.start}); expected a TOML route file") from None
     return parse_route(data, source=str(path))
