@@ -82,9 +82,9 @@ GRID_M = 1.0
 ROAD_SHOULDER_M = 3.0
 """Width over which an imported road's surface falls to the ground beside it."""
 
-BRIDGE_M = 4.0
+BRIDGE_M = 10.0
 """Where the road passes over itself with heights further apart than this (more than GNSS
-height noise explains), the import warns that it may be a bridge."""
+height noise usually explains), the import warns that it may be a bridge."""
 
 Progress = Callable[[float, str], None]
 """Called with the fraction of the import done and what it is doing."""
@@ -461,8 +461,8 @@ def convert_track(track: Track, *, name: str | None = None, description: str | N
             if gap[k] > BRIDGE_M:
                 at = _nearest_point(s_pts, grid[ties[1][k]])
                 warn(f"the track passes within {reach:g} m of itself at {track.where(int(p.index[at])).split(': ', 1)[1]} "
-                     f"with heights {gap[k]:.1f} m apart (a bridge?); the ground has one height per place, so they "
-                     "are made equal")
+                     f"with heights {gap[k]:.1f} m apart (a bridge, or GNSS height noise?); the ground has one height "
+                     "per place, so they are made equal")
 
         def height_check(cutoff):
             z = whittaker(means, weights, whittaker_lambda(cutoff, h), closed, ties)

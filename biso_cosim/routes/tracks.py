@@ -8,8 +8,8 @@ the point (``my.gpx, line 812: track point 802 has lat=149.4; expected a latitud
 than ``max_file_mb``, and be text (a binary file is named as such).
 
 GPX is read with the standard library's streaming XML parser (expat), which gives each
-point's line for the messages and reads a long 10 Hz track in about a second; gpxpy builds
-an object per point and takes tens of seconds on the same file. Track points (``<trkpt>``,
+point's line for the messages and keeps long 10 Hz tracks within the import's time budget
+(benchmarks/route_import.py); gpxpy builds Python objects per point, too slow for them. Track points (``<trkpt>``,
 all tracks and segments in order) are used, else route points (``<rtept>``); ``<ele>`` and
 ``<time>`` are read, other elements ignored. Times are UTC (ISO 8601; a time without a zone
 is taken as UTC, as GPX prescribes).
