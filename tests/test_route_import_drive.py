@@ -6,7 +6,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from biso_cosim.routes import RouteWarning, parse_route
 from biso_cosim.routes.importing import convert_track
@@ -57,10 +56,3 @@ def test_a_mountain_recording_at_10_hz_drives():
 
 def test_the_real_recording_drives():
     driven(imported(read_track(COMMA)))
-
-
-@pytest.mark.slow
-def test_a_long_urban_recording_drives():
-    """2.8 km at 1 Hz with stops, the issue's case (`biso-cosim routes check` drives any)."""
-    syn = synthetic_track("urban", length_m=2800.0, rate_hz=1.0, seed=23, vertical_noise_m=1.5)
-    driven(imported(syn.track))
