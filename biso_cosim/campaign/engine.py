@@ -1,0 +1,273 @@
+"""The campaign engine: a campaign's runs as Dask tasks, their rows stored as they finish.
+
+The engine is Dask distributed: a :class:`distributed.LocalCluster` of one single-threaded
+worker process per core by default, or any cluster by its scheduler's address (SLURM and
+PBS through dask-jobqueue, Kubernetes, cloud: see docs/campaigns.md). Each task carries one
+:class:`~biso_cosim.campaign.spec.RunSpec` and returns that run's rows; Dask runs a task
+again elsewhere when its worker is lost. Before the first task every worker runs each
+sensor set-up's first second once (:class:`WarmUp`, a worker plugin, so workers that join
+later do it too): the numba kernels are then loaded from the cache (or compiled once per
+machine when the cache is cold), and no task compiles (each row counts the compilations in
+its task).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import gc
+import math
+import os
+import time
+import uuid
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Callable, Iterator, Mapping
+
+import pandas as pd
+
+from biso_cosim.campaign.run import STATUS_FAILED, execute_run, failed_rows
+from biso_cosim.campaign.spec import CampaignSpec, RunSpec, SpecError, load_spec, parse_spec
+from biso_cosim.campaign.store import ResultStore, StoreError
+
+from distributed.diagnostics.plugin import WorkerPlugin
+
+__all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "WarmUp", "CampaignInterrupted"]
+
+_WARM_UP_S = 1.0
+
+
+class EngineError(ValueError):
+    """A cluster the campaign cannot use (one line, naming the address or the setting)."""
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a campaign: the finished runs are stored, the runs in flight are lost."""
+
+    def __init__(self, done: int, total: int, directory: str | None):
+        super().__init__(f"interrupted: {done} of {total} runs stored"
+                         + (f" in {directory}; --resume completes the campaign" if directory else ""))
+        self.done, self.total, self.directory = done, total, directory
+
+
+def _warm_up(runs: tuple[RunSpec, ...]) -> int:
+    """Run the first second of each run, then freeze what is alive; the numba compilations
+    it took.
+
+    What the warm-up leaves alive (modules, kernels, numba's types) lives as long as the
+    worker: ``gc.freeze`` takes it out of the garbage collector's view, so that no full
+    collection during a task scans it again, nor the interpreter's at exit (several seconds
+    in a process that has loaded the co-simulation, past the four a Dask nanny waits
+    before it kills a closing worker)."""
+    total = 0
+    for run in runs:
+        short = dataclasses.replace(run, route=dataclasses.replace(run.route, duration_s=min(_WARM_UP_S,
+                                                                                             run.route.duration_s)),
+                                    log_dir=None)
+        total += execute_run(short)[0]["numba_compilations"]
+    gc.collect()
+    gc.freeze()
+    return total
+
+
+class WarmUp(WorkerPlugin):
+    """Each worker's warm-up before its first task (see the module docstring); it runs in a
+    thread, so the worker keeps answering the scheduler while a cold cache compiles."""
+
+    idempotent = False
+
+    def __init__(self, runs: tuple[RunSpec, ...]):
+        self.runs = runs
+        self.compilations: int | None = None
+        self.seconds: float | None = None
+
+    async def setup(self, worker) -> None:
+        start = time.perf_counter()
+        self.compilations = await asyncio.get_running_loop().run_in_executor(None, _warm_up, self.runs)
+        self.seconds = time.perf_counter() - start
+
+
+def _plugin_report(name: str, dask_worker=None) -> tuple[int | None, float | None]:
+    plugin = dask_worker.plugins.get(name)
+    return (None, None) if plugin is None else (plugin.compilations, plugin.seconds)
+
+
+def _package_version() -> str:
+    import biso_cosim
+
+    return biso_cosim.__version__
+
+
+@contextmanager
+def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 10.0) -> Iterator[Any]:
+    """A Dask client: to a new LocalCluster of ``workers`` single-threaded worker processes
+    (default: one per core), or to the scheduler at ``scheduler``; closed on exit."""
+    from distributed import Client, LocalCluster
+
+    if workers is not None and scheduler is not None:
+        raise EngineError("give --workers or --scheduler, not both")
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=f"{timeout_s}s")
+        except Exception as exc:  # noqa: BLE001  (timeouts, refused connections, malformed addresses)
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise EngineError(f"--scheduler {scheduler!r}: no Dask scheduler answered within {timeout_s:g} s "
+                              f"({reason})") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = (os.cpu_count() or 1) if workers is None else workers
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise EngineError(f"--workers must be a positive integer, got {workers!r}")
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+def _coerce_spec(spec: CampaignSpec | str | Path | Mapping) -> CampaignSpec:
+    if isinstance(spec, CampaignSpec):
+        return spec
+    if isinstance(spec, (str, Path)):
+        return load_spec(spec)
+    if isinstance(spec, Mapping):
+        return parse_spec(spec)
+    raise SpecError(f"spec: expected a CampaignSpec, a TOML file or a table of settings, got {type(spec).__name__}")
+
+
+def _check_workers(client) -> None:
+    ours = _package_version()
+    for address, version in client.run(_package_version).items():
+        if version != ours:
+            raise EngineError(f"worker {address} runs biso_cosim {version}, this client {ours}: install the same "
+                              f"version on every worker")
+
+
+def _ordered(frame: pd.DataFrame, canonical: Mapping) -> pd.DataFrame:
+    """Rows in the campaign's order: routes, sensor set-ups and estimators as the spec lists
+    them, seeds ascending."""
+    if frame.empty:
+        return frame
+    ranks = {"route": [r["route"] for r in canonical["routes"]], "sensor": [s["label"] for s in canonical["sensors"]],
+             "estimator": [e["label"] for e in canonical["estimators"]]}
+    keys = pd.DataFrame({col: frame[col].map({v: i for i, v in enumerate(values)}) for col, values in ranks.items()})
+    keys["seed"] = frame["seed"]
+    order = keys.sort_values(["route", "sensor", "seed", "estimator"], kind="stable").index
+    return frame.loc[order].reset_index(drop=True)
+
+
+def run_campaign(spec: CampaignSpec | str | Path | Mapping, client: Any = None, *, out: str | Path | None = None,
+                 resume: bool = False, workers: int | None = None, progress: bool = False,
+                 on_run: Callable[[list[dict]], None] | None = None) -> pd.DataFrame:
+    """Run a campaign; the results table, one row per (run, estimator), in the spec's order.
+
+    spec : a :class:`CampaignSpec`, a campaign TOML file, or its parsed table.
+    client : a :class:`distributed.Client`; None starts a LocalCluster of ``workers``
+        processes (default one per core) for this campaign.
+    out : the campaign directory (results as a Parquet dataset, written as runs finish;
+        see :mod:`biso_cosim.campaign.store`); None keeps the rows in memory only.
+    resume : skip the runs already in ``out`` (the spec must be the same).
+    progress : a progress bar with the time left (tqdm, on stderr).
+    on_run : called with each finished run's rows once they are stored.
+
+    Ctrl-C (KeyboardInterrupt) cancels the runs in flight and raises
+    :class:`CampaignInterrupted` once the finished ones are stored.
+    """
+    spec = _coerce_spec(spec)
+    if spec.keep == "logs" and out is None:
+        raise SpecError(f"{spec.source}: keep: 'logs' needs an output directory (out)")
+    store = None
+    done: set[str] = set()
+    if out is not None:
+        store = ResultStore(out)
+        store.open(spec.canonical(), resume)
+        if resume:
+            done = store.finished_run_ids()
+    runs = spec.runs(log_root=None if store is None else store.logs.resolve())
+    todo = [run for run in runs if run.run_id not in done]
+    rows: list[dict] = []
+    warm_up: dict = {}
+    start = time.perf_counter()
+    if todo:
+        if client is None:
+            with dask_client(workers=workers) as own:
+                rows, warm_up = _execute(own, spec, todo, len(runs), store, progress, on_run)
+        else:
+            rows, warm_up = _execute(client, spec, todo, len(runs), store, progress, on_run)
+    if store is None:
+        frame = pd.DataFrame(rows)
+    else:
+        store.compact()
+        frame = store.table().to_pandas()
+        ids = {run.run_id for run in runs}
+        frame = frame[frame["run_id"].isin(ids)] if not frame.empty else frame
+    frame = _ordered(frame, spec.canonical())
+    frame.attrs.update(runs=len(runs), ran=len(todo), skipped=len(runs) - len(todo), warm_up=warm_up,
+                       wall_s=time.perf_counter() - start)
+    return frame
+
+
+def _execute(client, spec: CampaignSpec, todo: list[RunSpec], total: int, store: ResultStore | None,
+             progress: bool, on_run) -> tuple[list[dict], dict]:
+    """Every run of ``todo`` as a task; the rows, and each worker's warm-up (compilations, s)."""
+    from distributed import as_completed
+
+    _check_workers(client)
+    name = f"biso-campaign-warm-up-{uuid.uuid4().hex[:8]}"
+    seen, warm = set(), []
+    for run in todo:  # one warm-up run per sensor set-up, on the first route
+        if run.sensor not in seen:
+            seen.add(run.sensor)
+            warm.append(run)
+    bar = None
+    futures: dict = {}
+    rows: list[dict] = []
+    finished = failed = 0
+    try:
+        client.register_plugin(WarmUp(tuple(warm)), name=name)
+        warm_up = {address: {"compilations": c, "seconds": s}
+                   for address, (c, s) in client.run(_plugin_report, name).items()}
+        if progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=total, initial=total - len(todo), unit="run", desc=spec.name, dynamic_ncols=True)
+        futures = {client.submit(execute_run, run, key=f"biso-run-{run.run_id}-{uuid.uuid4().hex[:6]}",
+                                 pure=False): run for run in todo}
+        for future in as_completed(futures):
+            run = futures.pop(future)
+            try:
+                run_rows = future.result()
+            except Exception as exc:  # noqa: BLE001  (a lost worker, every time: KilledWorker)
+                run_rows = [row | {"finished_at": time.time(), "task_wall_s": math.nan, "worker": None,
+                                   "numba_compilations": None}
+                            for row in failed_rows(run, f"{type(exc).__name__}: {exc}")]
+            if store is not None:
+                store.append(run_rows)
+            rows.extend(run_rows)
+            finished += 1
+            failed += run_rows[0]["status"] == STATUS_FAILED
+            if bar is not None:
+                bar.update(1)
+                if failed:
+                    bar.set_postfix(failed=failed)
+            if on_run is not None:
+                on_run(run_rows)
+    except KeyboardInterrupt:
+        client.cancel(list(futures))
+        raise CampaignInterrupted(total - len(todo) + finished, total,
+                                  None if store is None else str(store.directory)) from None
+    finally:
+        if bar is not None:
+            bar.close()
+        try:
+            client.unregister_worker_plugin(name)
+        except Exception:  # noqa: BLE001  (workers already gone: nothing to remove)
+            pass
+    return rows, warm_up
+
+
+def load_campaign(directory: str | Path) -> pd.DataFrame:
+    """The results table of a campaign directory (all the rows stored so far)."""
+    store = ResultStore(directory)
+    return _ordered(store.table().to_pandas(), store.spec())
