@@ -28,6 +28,8 @@ _ANGLES = ("roll", "pitch", "heading")
 METRICS = tuple(f"{angle}_{kind}" for kind in ("rms_deg", "max_abs_deg") for angle in _ANGLES)
 """The figures summarised: RMS and largest error of each angle, per run (degrees)."""
 STATISTICS = ("mean", "median", "p95", "max")
+# resamples drawn at once: memory stays near _BATCH_VALUES floats however many runs
+_BATCH_VALUES = 2_000_000
 ALL_ROUTES = "all"
 """The route name under which the statistics of all routes pooled are reported."""
 
@@ -46,7 +48,7 @@ def _bootstrap(data: tuple[np.ndarray, ...], statistic, confidence: float, resam
     if data[0].shape[0] < 2:
         return np.full(value.shape, np.nan), np.full(value.shape, np.nan)
     res = bootstrap(data, statistic, n_resamples=resamples, confidence_level=confidence, method="percentile",
-                    vectorized=True, paired=len(data) > 1, rng=rng)
+                    vectorized=True, batch=max(1, _BATCH_VALUES // data[0].shape[0]), rng=rng)
     return np.atleast_1d(res.confidence_interval.low), np.atleast_1d(res.confidence_interval.high)
 
 
