@@ -99,7 +99,7 @@ def test_resume_after_ctrl_c_runs_no_finished_run_again(tmp_path, client):
 
 
 def test_killed_worker_loses_no_finished_row(tmp_path, client):
-    spec = _small(tmp_path, parts=2, duration_s=3.0)
+    spec = _small(tmp_path, parts=1)
     out = tmp_path / "out"
     pids = client.run(os.getpid)
     killed: list[int] = []
@@ -113,10 +113,10 @@ def test_killed_worker_loses_no_finished_row(tmp_path, client):
             killed.append(victim)
 
     table = run_campaign(spec, client, out=out, on_run=kill_a_worker)
-    assert killed and len(table) == 8 * 4 and table["run_id"].nunique() == 8
+    assert killed and len(table) == 4 * 4 and table["run_id"].nunique() == 4
     assert (table["status"] != "failed").all()  # the lost run ran again on a live worker
     finished = before[0].set_index(["run_id", "estimator"])
-    assert len(finished) >= 4
+    assert len(finished) >= 4  # one run's rows at least
     pd.testing.assert_frame_equal(table.set_index(["run_id", "estimator"]).loc[finished.index], finished)
     assert killed[0] not in client.run(os.getpid).values()  # the nanny started a new worker process
     # the same rows as a campaign nothing happened to (same runs, same numbers)

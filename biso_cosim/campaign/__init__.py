@@ -16,10 +16,30 @@ Needs the optional extra ``campaign`` (``pip install biso_cosim[campaign]``: Das
 distributed, pyarrow, pandas).
 """
 
-from biso_cosim.campaign.engine import CampaignInterrupted, EngineError, dask_client, load_campaign, run_campaign
-from biso_cosim.campaign.spec import CampaignSpec, RunSpec, SpecError, load_spec, parse_spec
-from biso_cosim.campaign.statistics import error_statistics, paired_comparisons
-from biso_cosim.campaign.store import StoreError
+from __future__ import annotations
 
-__all__ = ["run_campaign", "load_campaign", "load_spec", "parse_spec", "CampaignSpec", "RunSpec", "dask_client",
-           "error_statistics", "paired_comparisons", "SpecError", "StoreError", "EngineError", "CampaignInterrupted"]
+import importlib
+
+# Imported on first use: a worker imports only what its tasks need (``run``, ``spec``), not
+# pandas and pyarrow, which the engine, the store and the statistics use on the client.
+_LAZY = {
+    "run_campaign": "engine", "load_campaign": "engine", "dask_client": "engine", "EngineError": "engine",
+    "CampaignInterrupted": "engine", "CampaignSpec": "spec", "RunSpec": "spec", "SpecError": "spec",
+    "load_spec": "spec", "parse_spec": "spec", "error_statistics": "statistics",
+    "paired_comparisons": "statistics", "StoreError": "store",
+}
+
+__all__ = list(_LAZY)
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'biso_cosim.campaign' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"biso_cosim.campaign.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -13,9 +13,7 @@ its task).
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
-import gc
 import math
 import os
 import time
@@ -26,15 +24,13 @@ from typing import Any, Callable, Iterator, Mapping
 
 import pandas as pd
 
-from biso_cosim.campaign.run import STATUS_FAILED, execute_run, failed_rows
+from biso_cosim.campaign.run import STATUS_FAILED, WarmUp, execute_run, failed_rows, warm_up_report
 from biso_cosim.campaign.spec import CampaignSpec, RunSpec, SpecError, load_spec, parse_spec
 from biso_cosim.campaign.store import ResultStore, StoreError
 
-from distributed.diagnostics.plugin import WorkerPlugin
-
-__all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "WarmUp", "CampaignInterrupted"]
-
-_WARM_UP_S = 1.0
+__all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "CampaignInterrupted"]
+# finished runs between two merges of their Parquet files (ResultStore.compact)
+_COMPACT_EVERY = 500
 
 
 class EngineError(ValueError):
@@ -50,48 +46,6 @@ class CampaignInterrupted(KeyboardInterrupt):
         self.done, self.total, self.directory = done, total, directory
 
 
-def _warm_up(runs: tuple[RunSpec, ...]) -> int:
-    """Run the first second of each run, then freeze what is alive; the numba compilations
-    it took.
-
-    What the warm-up leaves alive (modules, kernels, numba's types) lives as long as the
-    worker: ``gc.freeze`` takes it out of the garbage collector's view, so that no full
-    collection during a task scans it again, nor the interpreter's at exit (several seconds
-    in a process that has loaded the co-simulation, past the four a Dask nanny waits
-    before it kills a closing worker)."""
-    total = 0
-    for run in runs:
-        short = dataclasses.replace(run, route=dataclasses.replace(run.route, duration_s=min(_WARM_UP_S,
-                                                                                             run.route.duration_s)),
-                                    log_dir=None)
-        total += execute_run(short)[0]["numba_compilations"]
-    gc.collect()
-    gc.freeze()
-    return total
-
-
-class WarmUp(WorkerPlugin):
-    """Each worker's warm-up before its first task (see the module docstring); it runs in a
-    thread, so the worker keeps answering the scheduler while a cold cache compiles."""
-
-    idempotent = False
-
-    def __init__(self, runs: tuple[RunSpec, ...]):
-        self.runs = runs
-        self.compilations: int | None = None
-        self.seconds: float | None = None
-
-    async def setup(self, worker) -> None:
-        start = time.perf_counter()
-        self.compilations = await asyncio.get_running_loop().run_in_executor(None, _warm_up, self.runs)
-        self.seconds = time.perf_counter() - start
-
-
-def _plugin_report(name: str, dask_worker=None) -> tuple[int | None, float | None]:
-    plugin = dask_worker.plugins.get(name)
-    return (None, None) if plugin is None else (plugin.compilations, plugin.seconds)
-
-
 def _package_version() -> str:
     import biso_cosim
 
@@ -102,6 +56,7 @@ def _package_version() -> str:
 def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 10.0) -> Iterator[Any]:
     """A Dask client: to a new LocalCluster of ``workers`` single-threaded worker processes
     (default: one per core), or to the scheduler at ``scheduler``; closed on exit."""
+    import dask
     from distributed import Client, LocalCluster
 
     if workers is not None and scheduler is not None:
@@ -121,8 +76,11 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     n = (os.cpu_count() or 1) if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise EngineError(f"--workers must be a positive integer, got {workers!r}")
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    # No dashboard, hence no use for the workers' statistical profiler, which would sample
+    # every task's thread every 10 ms (its workers take the config as it stands at their start).
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    with cluster, Client(cluster) as client:
         yield client
 
 
@@ -210,7 +168,8 @@ def run_campaign(spec: CampaignSpec | str | Path | Mapping, client: Any = None, 
 
 def _execute(client, spec: CampaignSpec, todo: list[RunSpec], total: int, store: ResultStore | None,
              progress: bool, on_run) -> tuple[list[dict], dict]:
-    """Every run of ``todo`` as a task; the rows, and each worker's warm-up (compilations, s)."""
+    """Every run of ``todo`` as a task; the rows, and each worker's warm-up (numba
+    compilations, wall and CPU seconds)."""
     from distributed import as_completed
 
     _check_workers(client)
@@ -226,8 +185,7 @@ def _execute(client, spec: CampaignSpec, todo: list[RunSpec], total: int, store:
     finished = failed = 0
     try:
         client.register_plugin(WarmUp(tuple(warm)), name=name)
-        warm_up = {address: {"compilations": c, "seconds": s}
-                   for address, (c, s) in client.run(_plugin_report, name).items()}
+        warm_up = client.run(warm_up_report, name)
         if progress:
             from tqdm import tqdm
 
@@ -239,13 +197,16 @@ def _execute(client, spec: CampaignSpec, todo: list[RunSpec], total: int, store:
             try:
                 run_rows = future.result()
             except Exception as exc:  # noqa: BLE001  (a lost worker, every time: KilledWorker)
-                run_rows = [row | {"finished_at": time.time(), "task_wall_s": math.nan, "worker": None,
-                                   "numba_compilations": None}
+                lost = {"finished_at": time.time(), "task_wall_s": math.nan, "task_cpu_s": math.nan, "worker": None,
+                        "numba_compilations": None}
+                run_rows = [row | lost
                             for row in failed_rows(run, f"{type(exc).__name__}: {exc}")]
             if store is not None:
                 store.append(run_rows)
             rows.extend(run_rows)
             finished += 1
+            if store is not None and finished % _COMPACT_EVERY == 0:
+                store.compact()
             failed += run_rows[0]["status"] == STATUS_FAILED
             if bar is not None:
                 bar.update(1)

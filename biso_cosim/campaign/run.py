@@ -3,13 +3,17 @@
 ``execute_run`` is the task the engine sends to Dask: it takes a :class:`RunSpec` (small:
 names, parameter values, a route or profile file's text) and returns one row per estimator
 with every figure of :meth:`biso_cosim.cosim.RunResult.summary`, the run's parameters, its
-status, and what the task cost (wall time, numba compilations inside the task). A run that
+status, and what the task cost (wall and CPU time, numba compilations inside the task). A run that
 raises is returned as rows with ``status = "failed"`` and the error, never as an exception,
-so that the campaign goes on.
+so that the campaign goes on. ``WarmUp`` is the worker plugin that readies a worker before
+its first task. This module is all a worker imports of the campaign package.
 """
 
 from __future__ import annotations
 
+import asyncio
+import dataclasses
+import gc
 import json
 import math
 import os
@@ -18,9 +22,11 @@ import time
 import traceback
 from typing import Any, Mapping
 
+from distributed.diagnostics.plugin import WorkerPlugin
+
 from biso_cosim.campaign.spec import RunSpec
 
-__all__ = ["execute_run", "run_rows", "failed_rows", "RUN_COLUMNS", "STATUS_FAILED"]
+__all__ = ["execute_run", "run_rows", "failed_rows", "WarmUp", "warm_up_report", "RUN_COLUMNS", "STATUS_FAILED"]
 
 STATUS_FAILED = "failed"
 """Status of a run that raised (its rows carry the error)."""
@@ -29,6 +35,7 @@ RUN_COLUMNS = ("run_id", "route", "sensor", "profile", "registers", "gyro_calibr
                "estimator", "method", "params", "status", "error")
 """The columns that every row has, failed or not: the run's parameters and its outcome."""
 
+_WARM_UP_S = 1.0  # simulated seconds of a worker's warm-up run
 _ANGLES = ("roll", "pitch", "heading")
 # summary fields that may be None; flattened to the same columns as when present (NaN), so
 # that every run's rows share one schema
@@ -96,7 +103,7 @@ def execute_run(run: RunSpec) -> list[dict[str, Any]]:
     """Run one co-simulation (:func:`biso_cosim.cosim.run_route`) and return its rows."""
     from numba.core import event
 
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.thread_time()
     with event.install_recorder("numba:compile") as compiled:
         try:
             from biso_cosim.cosim import run_route
@@ -113,6 +120,7 @@ def execute_run(run: RunSpec) -> list[dict[str, Any]]:
             last = traceback.extract_tb(exc.__traceback__)[-1]
             rows = failed_rows(run, f"{type(exc).__name__}: {exc} ({os.path.basename(last.filename)}:{last.lineno})")
     task = {"worker": f"{socket.gethostname()}:{os.getpid()}", "task_wall_s": time.perf_counter() - start,
+            "task_cpu_s": time.thread_time() - cpu_start,
             "numba_compilations": sum(1 for _, ev in compiled.buffer if ev.is_start),
             "finished_at": time.time()}
     return [row | task for row in rows]
@@ -127,3 +135,56 @@ def _write_log(result, summary: Mapping[str, Any], log_dir: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_run_log(result, out / "log.csv")
     (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+
+
+def _warm_up(runs: tuple[RunSpec, ...]) -> int:
+    """Run the first second of each run, then freeze what is alive; the numba compilations
+    it took.
+
+    What the warm-up leaves alive (modules, kernels, numba's types) lives as long as the
+    worker: ``gc.freeze`` takes it out of the garbage collector's view, so that no full
+    collection during a task scans it again, nor the interpreter's at exit (several seconds
+    in a process that has loaded the co-simulation, past the four a Dask nanny waits
+    before it kills a closing worker)."""
+    total = 0
+    for run in runs:
+        short = dataclasses.replace(run, route=dataclasses.replace(run.route, duration_s=min(_WARM_UP_S,
+                                                                                             run.route.duration_s)),
+                                    log_dir=None)
+        total += execute_run(short)[0]["numba_compilations"]
+    gc.collect()
+    gc.freeze()
+    return total
+
+
+class WarmUp(WorkerPlugin):
+    """A worker's warm-up before its first task, and on every worker that joins later: the
+    first second of each run given (one per sensor set-up), so that the numba kernels are
+    loaded from the cache (or compiled once per machine when it is cold) and no task
+    compiles, then ``gc.freeze`` (see ``_warm_up``). It runs in a thread, so the worker keeps
+    answering the scheduler while a cold cache compiles."""
+
+    idempotent = False
+
+    def __init__(self, runs: tuple[RunSpec, ...]):
+        self.runs = runs
+        self.compilations: int | None = None
+        self.seconds: float | None = None
+        self.cpu_seconds: float | None = None
+
+    async def setup(self, worker) -> None:
+        start = time.perf_counter()
+        self.compilations, self.cpu_seconds = await asyncio.get_running_loop().run_in_executor(None, self._run)
+        self.seconds = time.perf_counter() - start
+
+    def _run(self) -> tuple[int, float]:
+        cpu = time.thread_time()
+        compilations = _warm_up(self.runs)
+        return compilations, time.thread_time() - cpu
+
+
+def warm_up_report(name: str, dask_worker=None) -> dict[str, Any]:
+    """A worker's warm-up (``client.run(warm_up_report, name)``)."""
+    plugin = dask_worker.plugins.get(name)
+    return {"compilations": getattr(plugin, "compilations", None), "seconds": getattr(plugin, "seconds", None),
+            "cpu_seconds": getattr(plugin, "cpu_seconds", None)}

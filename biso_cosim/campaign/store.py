@@ -3,14 +3,14 @@
 Layout of a campaign directory::
 
     DIR/campaign.json        the checked spec (canonical form), to resume only the same campaign
-    DIR/results/*.parquet    the rows: one file per finished run, merged into larger files
-                             when a campaign ends (``compact``)
+    DIR/results/*.parquet    the rows: one file per finished run (``run-*``), merged into
+                             part files (``part-*``) every few hundred runs and at the end
     DIR/logs/<run_id>/       each run's log.csv and summary.json (keep = "logs")
 
 Every file appears whole or not at all (written under a temporary name, then renamed), so a
 crash, a lost worker or Ctrl-C loses at most the runs in flight. A run written twice (a
-merge interrupted between writing the merged file and removing its parts, or a failed run
-run again on resume) is read once: the rows that finished last.
+merge interrupted between writing the part file and removing the files it merged, or a
+failed run run again on resume) is read once: the rows that finished last.
 """
 
 from __future__ import annotations
@@ -125,14 +125,15 @@ class ResultStore:
         return path
 
     def compact(self) -> None:
-        """Merge the per-run files into one (the rows they hold, each once)."""
+        """Merge the per-run files written since the last merge into one part file (earlier
+        parts stay as they are, so that merging as a campaign goes costs each row once)."""
         files = sorted(self.results.glob("run-*.parquet"))
         if len(files) < 2:
             return
-        merged = read_results(self.results)
-        path = self.results / f"merged-{uuid.uuid4().hex[:8]}.parquet"
+        merged = pa.concat_tables([pq.read_table(f) for f in files], promote_options="permissive")
+        path = self.results / f"part-{uuid.uuid4().hex[:12]}.parquet"
         _atomic_write(path, lambda p: pq.write_table(merged, p))
-        for f in [*files, *(f for f in self.results.glob("merged-*.parquet") if f != path)]:
+        for f in files:
             f.unlink()
 
     def table(self) -> pa.Table:

@@ -38,6 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _import_campaign():
     try:
         import biso_cosim.campaign as campaign
+        import biso_cosim.campaign.engine  # noqa: F401  (Dask distributed, pandas)
+        import biso_cosim.campaign.store  # noqa: F401  (pyarrow)
     except ImportError as exc:
         raise UserError(f"needs the optional extra 'campaign' (pip install 'biso_cosim[campaign]'): "
                         f"{exc.name or exc} is not installed") from None
