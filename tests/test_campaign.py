@@ -48,8 +48,8 @@ def test_campaign_rows_equal_runs_made_one_by_one(tmp_path, client):
     assert (table["status"] == "incomplete").all() and table["error"].isna().all()
     # every task loaded the numba kernels warm: no compilation inside a task
     assert (table["numba_compilations"] == 0).all()
-    sensors = {"mpu9250_calibrated": {}, "mpu9250[dlpf_cfg=2]": dict(sensor_profile="mpu9250",
-                                                                      registers={"dlpf_cfg": 2}, gyro_calibration_s=0.5)}
+    sensors = {"mpu9250_calibrated": {},
+               "mpu9250[dlpf_cfg=2]": dict(sensor_profile="mpu9250", registers={"dlpf_cfg": 2}, gyro_calibration_s=0.5)}
     estimators = [EstimatorSpec("biso_plus"), EstimatorSpec("biso", {"cutoff_hz": 2.0}, label="biso[cutoff_hz=2.0]"),
                   EstimatorSpec("biso", {"cutoff_hz": 5.0}, label="biso[cutoff_hz=5.0]"), EstimatorSpec("poisson")]
     for (route, sensor, seed), rows in table.groupby(["route", "sensor", "seed"], sort=False):
@@ -132,7 +132,8 @@ def test_a_failing_run_is_a_row_and_the_campaign_goes_on(tmp_path, client):
     table = run_campaign(spec, client, out=tmp_path / "out")
     failed = table[table["route"] == "my_slalom.toml"]
     assert len(failed) == 2 * 4 and (failed["status"] == "failed").all()
-    assert failed["error"].str.startswith("ValueError: ").all() and failed["error"].str.contains("missing required key").all()
+    assert failed["error"].str.startswith("ValueError: ").all()
+    assert failed["error"].str.contains("missing required key").all()
     good = table[table["route"] == "figure8"]
     assert (good["status"] == "incomplete").all() and np.isfinite(good["heading_rms_deg"]).all()
     # resume runs the failed runs again (here they fail again) and keeps each (run, estimator) once

@@ -2,6 +2,7 @@
 and every bad input is one line naming the field, before any run (no cluster needed)."""
 
 import math
+import re
 
 import pytest
 
@@ -24,7 +25,8 @@ def test_grid_random_and_sensor_lists_expand(tmp_path):
                                                                "accel_gate": {"choice": [2.0, 3.0]}}}}]})
     assert [s.label for s in spec.sensors] == ["mpu9250[dlpf_cfg=2]", "mpu9250[dlpf_cfg=4]", "mpu9250_calibrated"]
     labels = [e.label for e in spec.estimators]
-    assert labels[:4] == ["biso[cutoff_hz=2.0,norm_gain=1.0]", "biso[cutoff_hz=2.0,norm_gain=0.5]", "biso[cutoff_hz=5.0,norm_gain=1.0]",
+    assert labels[:4] == ["biso[cutoff_hz=2.0,norm_gain=1.0]", "biso[cutoff_hz=2.0,norm_gain=0.5]",
+                          "biso[cutoff_hz=5.0,norm_gain=1.0]",
                           "biso[cutoff_hz=5.0,norm_gain=0.5]"]
     assert labels[4:] == ["bp#0", "bp#1", "bp#2", "bp#3"]
     drawn = [dict(e.params) for e in spec.estimators[4:]]
@@ -78,7 +80,8 @@ BAD = [
     ({"sensors": [{"registers": {"dlpf": 2}}]}, "sensors[0].registers: registers: unknown field(s) ['dlpf']"),
     ({"estimators": [{"name": "bisoo"}]}, "estimators[0]: bisoo: unknown estimator 'bisoo'"),
     ({"estimators": [{"name": "biso", "params": {"cutof_hz": 5}}]}, "estimators[0]: biso: 'biso' has no parameter"),
-    ({"estimators": [{"name": "biso", "grid": {"cutoff_hz": []}}]}, "estimators[0].grid.cutoff_hz: expected a non-empty"),
+    ({"estimators": [{"name": "biso", "grid": {"cutoff_hz": []}}]},
+     "estimators[0].grid.cutoff_hz: expected a non-empty"),
     ({"estimators": [{"name": "biso", "grid": {}}]}, "estimators[0].grid: expected a non-empty table"),
     ({"estimators": [{"name": "biso", "grid": {"cutoff_hz": [-1.0]}}]}, "estimators[0]: biso[cutoff_hz=-1.0]:"),
     ({"estimators": [{"name": "biso", "random": {"samples": 0, "params": {"k": [1, 2]}}}]},
@@ -128,3 +131,23 @@ def test_cli_refuses_bad_input_before_any_run(tmp_path, capsys):
 def error_for_missing_spec(tmp_path, capsys):
     assert cli_main(["campaign", str(tmp_path / "none.toml"), "--out", str(tmp_path / "o")]) == 2
     return capsys.readouterr().err
+
+
+def test_docs_slurm_example_builds_its_job_script(capsys):
+    """The SLURM example of docs/campaigns.md, as printed there (dask-jobqueue is optional)."""
+    pytest.importorskip("dask_jobqueue")
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "campaigns.md").read_text()
+    block = re.search(r"<!-- slurm-example.*?-->\n```python\n(.*?)```", text, re.S).group(1)
+    namespace: dict = {}
+    try:
+        exec(block, namespace)  # constructs the cluster (its scheduler; no job is submitted) and prints the script
+    finally:
+        if "cluster" in namespace:
+            namespace["cluster"].close()
+    script = capsys.readouterr().out
+    for line in ("#SBATCH -p compute", "#SBATCH -A estimation", "#SBATCH --cpus-per-task=2", "#SBATCH --mem=8G",
+                 "#SBATCH -t 04:00:00", "export NUMBA_CACHE_DIR=$HOME/biso/numba-cache"):
+        assert line in script.splitlines(), line
+    assert "distributed.cli.dask_worker" in script and "--nthreads 1" in script and "--nworkers 2" in script

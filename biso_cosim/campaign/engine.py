@@ -28,7 +28,21 @@ from biso_cosim.campaign.run import STATUS_FAILED, WarmUp, execute_run, failed_r
 from biso_cosim.campaign.spec import CampaignSpec, RunSpec, SpecError, load_spec, parse_spec
 from biso_cosim.campaign.store import ResultStore, StoreError
 
-__all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "CampaignInterrupted"]
+__all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "CampaignInterrupted", "LOCAL_CLUSTER_CONFIG"]
+
+LOCAL_CLUSTER_CONFIG = {
+    # no dashboard, so no use for the statistical profiler sampling each task's thread every 10 ms
+    "distributed.worker.profile.enabled": False,
+    # housekeeping at the pace of tasks that last seconds: each event loop's responsiveness
+    # tick (20 ms), the system monitor (0.5 s), the nanny's memory check (0.1 s) and work
+    # stealing (0.1 s) cost an idle two-worker cluster 0.09 CPU-seconds a second; 0.01 so
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.scheduler.work-stealing-interval": "1s",
+}
+"""Dask settings of the LocalCluster a campaign starts (an existing cluster keeps its own;
+docs/campaigns.md shows them as a Dask config file)."""
 # finished runs between two merges of their Parquet files (ResultStore.compact)
 _COMPACT_EVERY = 500
 
@@ -76,9 +90,8 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     n = (os.cpu_count() or 1) if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise EngineError(f"--workers must be a positive integer, got {workers!r}")
-    # No dashboard, hence no use for the workers' statistical profiler, which would sample
-    # every task's thread every 10 ms (its workers take the config as it stands at their start).
-    with dask.config.set({"distributed.worker.profile.enabled": False}):
+    # The scheduler and its workers take the config as it stands when they start.
+    with dask.config.set(LOCAL_CLUSTER_CONFIG):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
     with cluster, Client(cluster) as client:
         yield client

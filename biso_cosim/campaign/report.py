@@ -162,10 +162,11 @@ def write_report(frame: pd.DataFrame, stats: pd.DataFrame, paired: pd.DataFrame,
     lines += ["| route | duration (s) |", "|---|---|"]
     lines += [f"| `{r['route']}` | {r['duration_s']:g} |" for r in canonical["routes"]]
     lines += ["", "| sensor set-up | profile | registers | gyro calibration (s) |", "|---|---|---|---|"]
-    lines += [f"| `{s['label']}` | `{s['profile']}` | {dict(s['registers']) or 'defaults'} | {s['gyro_calibration_s']:g} |"
-              for s in canonical["sensors"]]
+    lines += [f"| `{s['label']}` | `{s['profile']}` | {dict(s['registers']) or 'defaults'} | "
+              f"{s['gyro_calibration_s']:g} |" for s in canonical["sensors"]]
     lines += ["", "| estimator | method | parameters |", "|---|---|---|"]
-    lines += [f"| `{e['label']}` | `{e['name']}` | {dict(e['params']) or 'defaults'} |" for e in canonical["estimators"]]
+    lines += [f"| `{e['label']}` | `{e['name']}` | {dict(e['params']) or 'defaults'} |"
+              for e in canonical["estimators"]]
     if not runs.empty:
         lines += ["", "## Runs", "", "| route | " + " | ".join(sorted(set(runs["status"]))) + " |",
                   "|---|" + "---|" * runs["status"].nunique()]
@@ -185,7 +186,8 @@ def write_report(frame: pd.DataFrame, stats: pd.DataFrame, paired: pd.DataFrame,
     for metric in METRICS:
         angle, _, kind = metric.partition("_")
         lines += [f"### {angle}: {_KINDS[kind]}", "",
-                  "| route | estimator | runs | mean | median | 95th percentile | maximum |", "|---|---|---|---|---|---|---|"]
+                  "| route | estimator | runs | mean | median | 95th percentile | maximum |",
+                  "|---|---|---|---|---|---|---|"]
         for _, row in stats[stats["metric"] == metric].iterrows():
             lines.append(f"| `{row['route']}` | `{row['estimator']}` | {row['runs']} | {_ci(row, 'mean')} | "
                          f"{_ci(row, 'median')} | {_ci(row, 'p95')} | {_ci(row, 'max')} |")
@@ -198,7 +200,8 @@ def write_report(frame: pd.DataFrame, stats: pd.DataFrame, paired: pd.DataFrame,
         for metric in METRICS:
             angle, _, kind = metric.partition("_")
             lines += [f"### {angle}: {_KINDS[kind]}", "",
-                      "| route | A | B | runs | A smaller | B smaller | ties | mean A − B |", "|---|---|---|---|---|---|---|---|"]
+                      "| route | A | B | runs | A smaller | B smaller | ties | mean A − B |",
+                      "|---|---|---|---|---|---|---|---|"]
             for _, r in paired[paired["metric"] == metric].iterrows():
                 if not r["runs"]:
                     continue

@@ -62,7 +62,8 @@ def _flatten(entry: Mapping[str, Any], prefix: str, out: dict[str, Any], skip: s
         if value is None and key in _OPTIONAL_GROUPS:
             out.update({f"{name}_{sub}": math.nan for sub in _OPTIONAL_GROUPS[key]})
         elif isinstance(value, Mapping):
-            _flatten(value, prefix if key in _INLINE else f"{name}_", out, _SENSOR_SKIP if key == "sensor" and not prefix else frozenset())
+            skip_inner = _SENSOR_SKIP if key == "sensor" and not prefix else frozenset()
+            _flatten(value, prefix if key in _INLINE else f"{name}_", out, skip_inner)
         elif isinstance(value, (list, tuple)):
             out[name] = _json(value)
         else:

@@ -385,7 +385,8 @@ def _estimators(value: Any, sensors: tuple[SensorSetup, ...], fail) -> tuple[Est
             sets = [(f"{label}[" + ",".join(f"{k}={_format_value(v)}" for k, v in values.items()) + "]", values)
                     for values in _grid(item["grid"], f"{where}.grid", fail)]
         elif "random" in item:
-            sets = [(f"{label}#{j}", values) for j, values in enumerate(_random(item["random"], f"{where}.random", fail))]
+            drawn = _random(item["random"], f"{where}.random", fail)
+            sets = [(f"{label}#{j}", values) for j, values in enumerate(drawn)]
         else:
             sets = [(label, {})]
         for set_label, values in sets:
