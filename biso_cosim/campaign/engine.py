@@ -14,8 +14,11 @@ its task).
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
+import signal
+import threading
 import time
 import uuid
 from contextlib import contextmanager
@@ -67,6 +70,19 @@ def _package_version() -> str:
 
 
 @contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored in this process meanwhile (so in the processes it starts), where it can be set."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def dask_client(workers: int | None = None, scheduler: str | None = None, timeout_s: float = 10.0) -> Iterator[Any]:
     """A Dask client: to a new LocalCluster of ``workers`` single-threaded worker processes
     (default: one per core), or to the scheduler at ``scheduler``; closed on exit."""
@@ -90,9 +106,14 @@ def dask_client(workers: int | None = None, scheduler: str | None = None, timeou
     n = (os.cpu_count() or 1) if workers is None else workers
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise EngineError(f"--workers must be a positive integer, got {workers!r}")
-    # The scheduler and its workers take the config as it stands when they start.
-    with dask.config.set(LOCAL_CLUSTER_CONFIG):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+    # The scheduler and its workers take the config as it stands when they start, and the
+    # worker processes the disposition of SIGINT: Ctrl-C in a terminal reaches the whole
+    # process group, and it is this process that stops the campaign and closes the workers.
+    with dask.config.set(LOCAL_CLUSTER_CONFIG), _sigint_ignored():
+        # (its workers' warnings when closed with tasks in flight, after Ctrl-C, say nothing the
+        # campaign does not: errors only)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
         yield client
 
