@@ -132,7 +132,7 @@ def main() -> None:
         print(f"{label:34}{rate[label[10]]:8.3f}{(c['wall'] - c['warm']) / n:12.2f}{cpu:11.2f}"
               f"   one-off: cluster start {c['start']:.1f} s, warm-up {c['warm']:.1f} s")
     print(f"2 workers / 1 worker: {rate['2'] / rate['1']:.2f}x (goal >= 1.8x on 2 cores)")
-    print(f"campaign (1 worker) overhead per run against the plain loop (goal <= 5 %):")
+    print("campaign (1 worker) overhead per run against the plain loop (goal <= 5 %):")
     machinery = c1["cpu"] - c1["warm_cpu"] - c1["task_cpu"]
     print(f"  inside the tasks: CPU {100 * (c1['task_cpu'] / plain_cpu - 1):+.1f} % (each task's thread against a "
           f"plain run)")

@@ -13,7 +13,6 @@ its task).
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import os
@@ -29,7 +28,7 @@ import pandas as pd
 
 from biso_cosim.campaign.run import STATUS_FAILED, WarmUp, execute_run, failed_rows, warm_up_report
 from biso_cosim.campaign.spec import CampaignSpec, RunSpec, SpecError, load_spec, parse_spec
-from biso_cosim.campaign.store import ResultStore, StoreError
+from biso_cosim.campaign.store import ResultStore
 
 __all__ = ["run_campaign", "load_campaign", "dask_client", "EngineError", "CampaignInterrupted", "LOCAL_CLUSTER_CONFIG"]
 
@@ -38,7 +37,7 @@ LOCAL_CLUSTER_CONFIG = {
     "distributed.worker.profile.enabled": False,
     # housekeeping at the pace of tasks that last seconds: each event loop's responsiveness
     # tick (20 ms), the system monitor (0.5 s), the nanny's memory check (0.1 s) and work
-    # stealing (0.1 s) cost an idle two-worker cluster 0.09 CPU-seconds a second; 0.01 so
+    # stealing (0.1 s) cost an idle one-worker cluster 0.09 CPU-seconds a second, 0.01 so
     "distributed.admin.tick.interval": "500ms",
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",

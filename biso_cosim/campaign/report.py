@@ -77,9 +77,19 @@ def _plt():
     return plt
 
 
+def _log_ticks(axis) -> None:
+    """Labels at 1, 2 and 5 × 10^k, none at the other minor ticks (they collide in a narrow panel)."""
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
+    axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(FormatStrFormatter("%g"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def plot_cdfs(frame: pd.DataFrame, path: str | Path) -> Path:
     """Empirical CDFs over runs, one line per estimator, all routes pooled."""
     plt = _plt()
+
     frame = result_rows(frame)
     fig, axes = plt.subplots(2, 3, figsize=(14, 7.5), layout="constrained")
     for ax, metric in zip(axes.flat, METRICS):
@@ -93,6 +103,7 @@ def plot_cdfs(frame: pd.DataFrame, path: str | Path) -> Path:
         ax.set_xlabel(f"{angle} {_KINDS[kind]} (°)")
         ax.set_ylabel("share of runs")
         ax.set_xscale("log")
+        _log_ticks(ax.xaxis)
         ax.grid(True, which="both", alpha=0.3)
     axes[0, 0].legend(fontsize="small")
     fig.suptitle("Error distribution over runs (all routes)")
@@ -104,6 +115,7 @@ def plot_cdfs(frame: pd.DataFrame, path: str | Path) -> Path:
 def plot_boxes(frame: pd.DataFrame, path: str | Path) -> Path:
     """Box plots over runs per route, one box per estimator."""
     plt = _plt()
+
     frame = result_rows(frame)
     routes = list(dict.fromkeys(frame["route"]))
     estimators = list(dict.fromkeys(frame["estimator"]))
@@ -130,6 +142,7 @@ def plot_boxes(frame: pd.DataFrame, path: str | Path) -> Path:
         angle, _, kind = metric.partition("_")
         ax.set_ylabel(f"{angle} {_KINDS[kind]} (°)")
         ax.set_yscale("log")
+        _log_ticks(ax.yaxis)
         ax.grid(True, axis="y", which="both", alpha=0.3)
     axes[0, 0].legend(fontsize="small")
     fig.suptitle("Errors over runs, per route")

@@ -72,7 +72,8 @@ def main(args: argparse.Namespace) -> int:
         print(f"biso-cosim campaign: {exc}", file=sys.stderr)
         return 130
     except KeyboardInterrupt:
-        print("biso-cosim campaign: interrupted before any run finished", file=sys.stderr)
+        print(f"biso-cosim campaign: interrupted; the runs that finished are in {args.out}, --resume completes "
+              f"the campaign", file=sys.stderr)
         return 130
     attrs = frame.attrs
     if attrs["skipped"]:
