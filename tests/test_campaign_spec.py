@@ -151,3 +151,12 @@ def test_docs_slurm_example_builds_its_job_script(capsys):
                  "#SBATCH -t 04:00:00", "export NUMBA_CACHE_DIR=$HOME/biso/numba-cache"):
         assert line in script.splitlines(), line
     assert "distributed.cli.dask_worker" in script and "--nthreads 1" in script and "--nworkers 2" in script
+
+
+def test_the_example_spec_is_valid():
+    from pathlib import Path
+
+    spec = load_spec(Path(__file__).resolve().parent.parent / "examples" / "campaign.toml")
+    assert len(spec.runs()) == 4 * 16 and spec.statistics.baseline == "biso"
+    assert [e.label for e in spec.estimators] == ["biso_plus", "biso", "biso_fc[cutoff_hz=1.0]",
+                                                  "biso_fc[cutoff_hz=3.0]", "poisson"]
