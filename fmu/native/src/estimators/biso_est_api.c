@@ -59,6 +59,21 @@ int biso_est_check_real(const char *kind, const char *name, double value, double
     return biso_est_fail(msg, size, "%s.%s must be finite, got %s", kind, name, v);
 }
 
+int biso_est_need_finite(const char *kind, double value, const char *what, const char *names, char *msg,
+                         size_t size) {
+    char list[256] = "";
+    const char *p = names;
+    if (isfinite(value)) return 0;
+    while (*p) {  /* "a, b" -> "kind.a, kind.b" */
+        size_t n = strlen(list), len = strcspn(p, ",");
+        snprintf(list + n, sizeof list - n, "%s%s.%.*s", n ? ", " : "", kind, (int)len, p);
+        p += len;
+        while (*p == ',' || *p == ' ') p++;
+    }
+    return biso_est_fail(msg, size, "%s: the values of %s give a non-finite %s (a value too large or too small "
+                         "for the arithmetic at this sample rate)", kind, list, what);
+}
+
 /* ---- kinds and tables ----------------------------------------------------------------- */
 
 int biso_est_kind(const char *name) {
@@ -263,8 +278,7 @@ void biso_est_run(biso_est *est, size_t n, const double *gyro_b, const double *a
     const biso_est_family *f = family_of(est->kind);
     biso_est_input in;
     biso_est_output out;
-    size_t i;
-    int j;
+    size_t i, j;
     in.speed_mps = NAN;
     in.has_velocity = velocity_enu_mps != NULL;
     in.velocity_enu_mps[0] = in.velocity_enu_mps[1] = in.velocity_enu_mps[2] = 0.0;

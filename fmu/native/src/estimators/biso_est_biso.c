@@ -132,6 +132,8 @@ static int biso_coefficients(const char *kind, const double *p, double fs_hz, do
         kp = isnan(p[P(K_P)]) ? BISO_EST_K_PAPER_K_P : p[P(K_P)];
     }
 
+    if (biso_est_need_finite(kind, k + kp, "gain", "cutoff_hz, k, k_p", msg, size) != 0) return -1;
+
     /* correction_matrix: G = -diag(k) - pattern * k_p (paper components), the reading applied */
     pattern = closed_pattern ? PATTERN_12 : PATTERN_13;
     for (i = 0; i < 16; i++) {
@@ -183,6 +185,7 @@ static int biso_coefficients(const char *kind, const double *p, double fs_hz, do
     c[C(CDH)] = cos(0.5 * decl);
     c[C(SDH)] = sin(0.5 * decl);
     e = p[P(RENORMALIZE)] != 0.0 ? 1.0 : exp(2.0 * scale * norm_gain * h);
+    if (biso_est_need_finite(kind, (e - 1.0) / e, "norm flow e^(2 g_n h)", "norm_gain", msg, size) != 0) return -1;
     c[C(NORM_E)] = e;
     c[C(NORM_A)] = (e - 1.0) / e;
     c[C(RENORM)] = p[P(RENORMALIZE)] != 0.0 ? 1.0 : 0.0;
@@ -198,6 +201,9 @@ static int biso_coefficients(const char *kind, const double *p, double fs_hz, do
     }
     c[C(WG)] = wg[0]; c[C(WG) + 1] = wg[1]; c[C(WG) + 2] = wg[2];
     g_in_q(g, T_GOST, c + C(G));
+    for (i = 0; i < 16; i++)
+        if (biso_est_need_finite(kind, c[C(G) + i], "correction matrix G", "cutoff_hz, k, k_p", msg, size) != 0)
+            return -1;
     c[C(GYRO_LIMIT)] = glim;
     c[C(ACCEL_LIMIT)] = alim;
     if (mode == BISO_EST_MODE_CLOSED) {

@@ -31,7 +31,6 @@ static double kalman_noise(double sigma, double v) {
 
 static int plus_coefficients(const char *kind, const double *p, double fs_hz, double *c, char *msg, size_t size) {
     double h = 1.0 / fs_hz, decl = p[P(DECLINATION_RAD)], dt_off;
-    (void)kind; (void)msg; (void)size;  /* every value is checked on its own (its range) */
     memset(c, 0, BISO_EST_BISO_PLUS_COEF_SIZE * sizeof(double));
     c[C(H)] = h;
     c[C(A_ACC)] = alpha_of(h, p[P(TAU_ACC_S)]);
@@ -89,6 +88,25 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     }
     /* |delta| > theta ⟺ cos delta < cos theta for |delta| <= pi; theta >= pi: never */
     c[C(COS_DIP_TOL)] = c[C(DIP_TOL)] < BISO_EST_K_PI ? cos(c[C(DIP_TOL)]) : -2.0;
+    /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
+    if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
+        || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
+        || biso_est_need_finite(kind, c[C(BIAS_W_MOTION)], "bias measurement noise in motion",
+                                "bias_sigma_motion_rad_s, bias_forgetting_s", msg, size)
+        || biso_est_need_finite(kind, c[C(BIAS_W_VERTICAL)], "vertical bias measurement noise",
+                                "bias_sigma_motion_rad_s, bias_forgetting_s, bias_heading_factor", msg, size)
+        || biso_est_need_finite(kind, c[C(BIAS_W_REST)], "bias measurement noise at rest",
+                                "bias_sigma_rest_rad_s, bias_forgetting_s", msg, size)
+        || biso_est_need_finite(kind, c[C(OFFSET_N)], "offset update interval in samples", "mag_offset_interval_s",
+                                msg, size)
+        || biso_est_need_finite(kind, c[C(Q_OFFSET)], "offset random walk",
+                                "mag_offset_sigma_ut, tau_mag_offset_s, mag_offset_interval_s", msg, size)
+        || biso_est_need_finite(kind, c[C(R_MAG)], "magnetometer noise variance", "mag_noise_ut", msg, size)
+        || biso_est_need_finite(kind, c[C(OFFSET_BIAS2)], "offset learning threshold",
+                                "mag_offset_bias_sigma_rad_s", msg, size)
+        || biso_est_need_finite(kind, c[C(INV_GATE_G)], "gate scale 1/(g gamma)", "gravity_mps2, accel_gate", msg,
+                                size))
+        return -1;
     return 0;
 }
 

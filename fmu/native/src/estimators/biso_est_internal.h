@@ -56,4 +56,10 @@ extern const biso_est_family biso_est_family_biso_plus;
 int biso_est_check_real(const char *kind, const char *name, double value, double lo, double hi, int lo_open,
                         char *msg, size_t size);
 
+/* 0 if a derived value is finite, else -1 with the message "<kind>: <names> give a
+ * non-finite <what> ..." (names: the parameters it comes from, comma-separated, without
+ * the kind): values the Python estimator refuses with an OverflowError or runs on. */
+int biso_est_need_finite(const char *kind, double value, const char *what, const char *names, char *msg,
+                         size_t size);
+
 #endif /* BISO_EST_INTERNAL_H */
