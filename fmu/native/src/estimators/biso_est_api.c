@@ -131,7 +131,6 @@ int biso_est_check_param(int kind, int index, double value, char *msg, size_t ms
         return biso_est_fail(msg, msg_size, "%s has no parameter %d (it has %d)", kname, index,
                              biso_est_param_count(kind));
     }
-    shortest(value, v, sizeof v);
     switch (p->type) {
     case BISO_EST_REAL:
         if (p->optional && isnan(value)) return 0;
@@ -143,6 +142,7 @@ int biso_est_check_param(int kind, int index, double value, char *msg, size_t ms
         return -1;
     case BISO_EST_INTEGER:
         if (isfinite(value) && value == floor(value) && value >= p->min && value <= p->max) return 0;
+        shortest(value, v, sizeof v);
         {
             char a[32], b[32];
             return biso_est_fail(msg, msg_size, "%s.%s must be a whole number in [%s, %s], got %s", kname, p->name,
@@ -150,9 +150,11 @@ int biso_est_check_param(int kind, int index, double value, char *msg, size_t ms
         }
     case BISO_EST_BOOLEAN:
         if (value == 0.0 || value == 1.0) return 0;
+        shortest(value, v, sizeof v);
         return biso_est_fail(msg, msg_size, "%s.%s must be 0 (false) or 1 (true), got %s", kname, p->name, v);
     case BISO_EST_CHOICE:
         if (isfinite(value) && value == floor(value) && value >= 0.0 && value < p->n_choices) return 0;
+        shortest(value, v, sizeof v);
         {
             char names[256] = "";
             int i;
