@@ -1,9 +1,13 @@
-"""The native (C99) FMU path: C sources of the estimators and the MPU-9250, built into FMUs
-that need no Python.
+"""The native (C99) FMUs: C sources of the virtual MPU-9250, the estimators and the FMI
+shells, the data generated for them from the Python package, and their build.
 
-The estimators' library lives in ``include/biso_estimators.h`` and ``src/estimators/``;
-its constants and parameter tables are generated from the Python estimators
-(``python -m biso_cosim.fmu.native.gen``).
+``include/`` holds the public headers (the sensor ``biso_sensor.h``, the Earth field
+``biso_field.h``, the estimators' ``biso_estimators.h`` and the FMI 2.0 / 3.0 headers);
+``src/sensor`` the virtual MPU-9250, its random generators and the WMM; ``src/estimators``
+the estimators' library; ``src/fmi`` the FMU models and their FMI 2.0 and FMI 3.0 shells.
+Every constant the C code shares with the Python model is generated at build time from the
+Python package (``constants.py`` for the sensor, ``gen.py`` for the estimators,
+``model_description.py`` for the variables), never written twice.
 """
 
 from __future__ import annotations
