@@ -39,7 +39,7 @@ from pythonfmu import (Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, F
 from pythonfmu.enums import Fmi2Status
 
 from biso_cosim import __version__
-from biso_cosim.fmu.variables import UNITS, Var, fingerprint, variables_of
+from biso_cosim.fmu.variables import UNITS, Var, fingerprint, has_flag_name, variables_of
 
 __all__ = ["BisoSlave", "FmuConfigError", "slave_class", "STAMP_FILE"]
 
@@ -48,6 +48,7 @@ STAMP_FILE = "biso_cosim_fmu.json"
 
 _PY_TYPES = {"Real": (Real, float), "Integer": (Integer, int), "Boolean": (Boolean, bool), "String": (String, str)}
 _STATE_MAGIC = b"biso_cosim FMU state 1\n"
+_MAG_INVALID = 16  # biso_cosim.sensors.ImuFlag.MAG_INVALID
 
 
 class FmuConfigError(ValueError):
@@ -292,6 +293,8 @@ class BisoSlave(Fmi2Slave):
         changes: dict[str, Any] = {}
         for name in sorted(self.pending):
             v = self.spec[name]
+            if v.key[0] == "given":  # a has_ flag: the parameter it belongs to changes
+                v = self.spec[f"{v.key[1]}.{v.key[2]}"]
             if v.key[1] == self.name:
                 changes[v.key[2]] = self._param_value(v)
             else:
@@ -329,10 +332,11 @@ class BisoSlave(Fmi2Slave):
     # ---- estimators ----------------------------------------------------------------------
 
     def estimator_choice(self, site_declination: float | None = None) -> tuple[str, dict[str, Any]]:
-        """The chosen estimator's name and the parameters the host set (NaN → None).
+        """The chosen estimator's name and its parameters from the variables (an optional
+        one is None unless its ``has_`` flag is true).
 
-        Parameters of other estimators that the host set are ignored with a warning. With
-        ``site_declination``, an unset ``declination_rad`` takes the site's declination.
+        With ``declination_from_site`` true, ``declination_rad`` is ``site_declination``
+        (left out when that is None: the model then uses its own site's).
         """
         from biso_cosim.fmu.variables import fmu_estimator_names
 
@@ -341,18 +345,13 @@ class BisoSlave(Fmi2Slave):
             raise ValueError(f"estimator must be one of {', '.join(fmu_estimator_names())}, got {name!r}"
                              " (the GNSS-aided estimators are not offered in the FMUs)")
         params: dict[str, Any] = {}
-        ignored = []
         for v in self.specs:
-            if v.key[0] != "param" or v.name not in self.set_by_host:
-                continue
-            if v.key[1] != name:
-                ignored.append(v.name)
-                continue
-            params[v.key[2]] = self._param_value(v)
-        if ignored:
-            self._warning(f"parameter(s) {', '.join(ignored)} belong to other estimators than {name!r}: ignored")
-        if site_declination is not None and "declination_rad" not in params:
-            params["declination_rad"] = site_declination
+            if v.key[0] == "param" and v.key[1] == name:
+                params[v.key[2]] = self._param_value(v)
+        if self.values.get("declination_from_site", False):
+            params.pop("declination_rad", None)
+            if site_declination is not None:
+                params["declination_rad"] = site_declination
         return name, params
 
     def make_estimator(self, fs_hz: float, params: dict[str, Any]):
@@ -371,10 +370,9 @@ class BisoSlave(Fmi2Slave):
         if row["kind"] == "Real3":
             prefix = v.name.rsplit("[", 1)[0]
             return tuple(self.values[f"{prefix}[{i}]"] for i in (1, 2, 3))
-        value = self.values[v.name]
-        if row["optional"] and isinstance(value, float) and math.isnan(value):
+        if row["optional"] and not self.values[has_flag_name(v.key[1], v.key[2])]:
             return None
-        return value
+        return self.values[v.name]
 
     def params_as_values(self, name: str, params: Any) -> None:
         """Write an estimator's parameter record back into the variables (after a refused change)."""
@@ -384,7 +382,7 @@ class BisoSlave(Fmi2Slave):
                 if len(v.key) == 4:
                     value = value[v.key[3]]
                 elif value is None:
-                    value = math.nan
+                    continue  # the value stays; its has_ flag (a parameter of its own) says None
                 elif isinstance(value, tuple):
                     value = value[0]
                 self.values[v.name] = _PY_TYPES[v.type][1](value)
@@ -428,6 +426,8 @@ class BisoSlave(Fmi2Slave):
                              ("temperature", samples.temperature_c), ("mag_fresh", samples.mag_fresh),
                              ("imu_flags", samples.flags), ("raw", samples.raw.words), ("status", samples.raw.status)):
             self.put(head, column[-1])
+        if samples.flags[-1] & _MAG_INVALID:
+            self.put("mag", (0.0, 0.0, 0.0))  # the documented sentinel, never NaN out
 
     # ---- FMU state -----------------------------------------------------------------------
 

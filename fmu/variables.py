@@ -7,14 +7,20 @@ register fields from ``biso_cosim.sensors.Registers`` (its documented attributes
 signals from the tables below, which also feed ``docs/fmu.md`` (``variable_table``) and the
 ``documentation/index.html`` inside each FMU.
 
-Mapping of Python parameter types to FMI 2.0 scalars (FMI 2 has no arrays and no None):
+Mapping of Python parameter types to FMI scalars (FMI 2 has no arrays and no None, and no
+start value may be NaN: Modelica has no NaN literal):
 
-* ``float`` → Real; ``float | None`` → Real where **NaN stands for None** (the start value
-  is NaN where the Python default is None);
+* ``float`` → Real; ``float | None`` → a Real and a Boolean flag ``<estimator>.has_<name>``
+  (start false): the Real is used only when the flag is true, else the parameter is None
+  (its documented meaning); the Real's start value is then 0 and means nothing;
 * gains given as "one value or four per channel" (BISO ``k``, ``k_p``) → one Real (the
   per-channel form is Python-only);
 * ``tuple[float, float, float]`` → three Reals ``name[1]``, ``name[2]``, ``name[3]``;
-* ``int`` → Integer, ``bool`` → Boolean, ``str`` → String.
+* ``int`` → Integer, ``bool`` → Boolean, ``str`` → String (one of the listed choices).
+
+Allowed ranges come from the estimators' C parameter tables (``native/gen.py``, checked
+against the Python checks by its tests): closed bounds become ``min``/``max``, and every
+range is written into the description.
 """
 
 from __future__ import annotations
@@ -180,22 +186,45 @@ def _typed_rows() -> dict[str, tuple[dict[str, Any], ...]]:
     return out
 
 
-def _param_description(row: dict[str, Any], note: str = "") -> str:
+def _ranges(name: str) -> dict[str, tuple[float, float, bool, tuple[str, ...]]]:
+    """Allowed (min, max, min_open, choices) of each C parameter entry of one estimator."""
+    from biso_cosim.fmu.native.gen import kind_entries
+
+    entries, _ = kind_entries(name)
+    return {e.name: (e.min, e.max, e.min_open, e.choices) for e in entries}
+
+
+def _allowed(lo: float, hi: float, lo_open: bool, choices: tuple[str, ...]) -> str:
+    if choices:
+        return "one of " + ", ".join(choices)
+    parts = []
+    if math.isfinite(lo):
+        parts.append(f"{'>' if lo_open else '>='} {lo:g}")
+    if math.isfinite(hi):
+        parts.append(f"<= {hi:g}")
+    return " and ".join(parts) or "any finite value"
+
+
+def _param_description(row: dict[str, Any], allowed: str, note: str = "") -> str:
     text = row["doc"]
     if row["symbol"]:
         text = f"{row['symbol']}: {text}"
-    if row["optional"]:
-        text += " (NaN stands for None)"
+    text += f" (allowed: {allowed})"
     if row["source"]:
         text += f" [{row['source']}]"
     return text + note
 
 
-def estimator_variables(*, tunable: bool = True, notes: dict[str, str] | None = None) -> list[Var]:
+def has_flag_name(name: str, param: str) -> str:
+    """The Boolean flag that says whether an optional parameter is given (else None)."""
+    return f"{name}.has_{param}"
+
+
+def estimator_variables(*, tunable: bool = True) -> list[Var]:
     """``estimator`` (which one) and every estimator's parameters as ``<estimator>.<param>``.
 
-    Only the group of the chosen estimator is used; ``notes`` appends text to the
-    description of parameters of that name (e.g. a different default in one FMU).
+    Only the group of the chosen estimator is used. An optional parameter (Python default
+    None) has a Boolean ``<estimator>.has_<param>`` beside it (see the module docstring).
     """
     from biso_cosim.estimators import describe_estimator
 
@@ -205,21 +234,50 @@ def estimator_variables(*, tunable: bool = True, notes: dict[str, str] | None = 
                f"attitude estimator, one of {', '.join(names)} ({summary})", key=("estimator",))]
     variability = "tunable" if tunable else "fixed"
     for name, rows in estimator_param_groups().items():
+        ranges = _ranges(name)
         for row in rows:
-            desc = _param_description(row, (notes or {}).get(row["name"], ""))
             key = ("param", name, row["name"])
             unit = fmi_unit(row["unit"])
             default = row["default"]
             if row["kind"] == "Real3":
                 for i, c in enumerate(("1", "2", "3")):
+                    lo, hi, lo_open, _ = ranges[f"{row['name']}[{c}]"]
+                    desc = _param_description(row, _allowed(lo, hi, lo_open, ()))
                     out.append(_real(f"{name}.{row['name']}[{c}]", "parameter", variability, default[i],
-                                     f"{desc}; {AXES[i]} component", unit, key + (i,)))
-            elif row["kind"] == "Real":
-                start = math.nan if default is None else float(default)
-                out.append(_real(f"{name}.{row['name']}", "parameter", variability, start, desc, unit, key))
+                                     f"{desc}; {AXES[i]} component", unit, key + (i,), **_bounds(lo, hi, lo_open)))
+                continue
+            lo, hi, lo_open, choices = ranges[row["name"]]
+            if row["kind"] == "Real":
+                if row["optional"]:
+                    flag = has_flag_name(name, row["name"])
+                    desc = _param_description(row, _allowed(lo, hi, lo_open, ()), f"; used only when {flag} is true")
+                    out.append(_real(f"{name}.{row['name']}", "parameter", variability, 0.0 if default is None
+                                     else float(default), desc, unit, key))
+                    out.append(Var(flag, "Boolean", "parameter", variability, default is not None,
+                                   f"true: {name}.{row['name']} is given; false: it is None, as in Python (see its "
+                                   "description for what None means)", key=("given", name, row["name"])))
+                else:
+                    desc = _param_description(row, _allowed(lo, hi, lo_open, ()))
+                    out.append(_real(f"{name}.{row['name']}", "parameter", variability, float(default), desc, unit,
+                                     key, **_bounds(lo, hi, lo_open)))
+            elif row["kind"] == "Integer":
+                desc = _param_description(row, _allowed(lo, hi, lo_open, ()))
+                out.append(Var(f"{name}.{row['name']}", "Integer", "parameter", variability, default, desc, key=key,
+                               **_bounds(lo, hi, lo_open)))
             else:
-                out.append(Var(f"{name}.{row['name']}", row["kind"], "parameter", variability, default, desc,
-                               key=key))
+                desc = _param_description(row, _allowed(lo, hi, lo_open, choices) if row["kind"] == "String"
+                                          else "true or false")
+                out.append(Var(f"{name}.{row['name']}", row["kind"], "parameter", variability, default, desc, key=key))
+    return out
+
+
+def _bounds(lo: float, hi: float, lo_open: bool) -> dict[str, float]:
+    """FMI min/max of a range (inclusive bounds only: an open bound is in the description)."""
+    out = {}
+    if math.isfinite(lo) and not lo_open:
+        out["min"] = lo
+    if math.isfinite(hi):
+        out["max"] = hi
     return out
 
 
@@ -342,8 +400,9 @@ def reading_outputs() -> list[Var]:
     out += _vector("gyro_b", "output", "gyro reading, body axes", "rad/s", ("gyro",), variability="discrete")
     out += _vector("accel_b", "output", "accelerometer reading (specific force, +g up at rest), body axes",
                    "m/s2", ("accel",), variability="discrete")
-    out += _vector("mag_b", "output", "magnetometer reading, body axes (latest AK8963 sample, held; NaN while "
-                   "powered down)", "uT", ("mag",), variability="discrete")
+    out += _vector("mag_b", "output", "magnetometer reading, body axes (latest AK8963 sample, held; 0 while "
+                   "there is none, e.g. powered down: imu_flags then has mag_invalid)", "uT", ("mag",),
+                   variability="discrete")
     out += [
         _real("temperature_c", "output", "discrete", 0.0, "on-chip temperature sensor reading", "degC",
               ("temperature",)),
@@ -387,8 +446,18 @@ def _estimator_fmu() -> list[Var]:
                    start=(0.0, 20.0, -40.0))
     out.append(_real("speed", "input", "continuous", 0.0, "forward speed of the vehicle at the point "
                      "biso_plus.speed_point_b_m (used with use_speed)", "m/s", ("speed",)))
+    out.append(Var("imu_flags", "Integer", "input", "discrete", 0, "the sensor's flags of the sample (as "
+                   "BisoImuPlugin's imu_flags: 1 gyro saturated, 2 accelerometer saturated, 4 AK8963 overflow, 16 "
+                   "magnetometer invalid); 0: none. Flagged samples are handled as the Python estimator handles "
+                   "them (estimate.flags)", key=("imu_flags_in",), min=0))
     out += estimate_outputs()
     return out
+
+
+def _declination_from_site(where: str) -> Var:
+    return Var("declination_from_site", "Boolean", "parameter", "fixed", True,
+               f"true: the estimator's declination_rad is the WMM declination at {where}; false: the "
+               "<estimator>.declination_rad parameter", key=("declination_from_site",))
 
 
 def _truth_inputs() -> list[Var]:
@@ -414,7 +483,8 @@ def _imu_plugin_fmu() -> list[Var]:
         Var("use_velocity", "Boolean", "parameter", "fixed", False, "give biso_plus the forward speed from the "
             "velocity input", key=("use_velocity",)),
     ]
-    out += estimator_variables(notes={"declination_rad": "; not set: the site's WMM declination"})
+    out.append(_declination_from_site("the site's (site.*)"))
+    out += estimator_variables()
     out += _truth_inputs()
     out += reading_outputs() + estimate_outputs() + error_outputs()
     return out
@@ -436,7 +506,8 @@ def _vehicle_fmu() -> list[Var]:
             "drive with the inputs steer, drive, brake instead of the scripted driver", key=("external_driver",)),
     ]
     out += sensor_variables(profile_default="mpu9250_calibrated", with_calibration=True)
-    out += estimator_variables(notes={"declination_rad": "; not set: the route site's WMM declination"})
+    out.append(_declination_from_site("the route's site"))
+    out += estimator_variables()
     out += [
         _real("steer", "input", "continuous", 0.0, "road-wheel angle of the bicycle model, left positive "
               "(with external_driver)", "rad", ("command", 0)),
@@ -497,7 +568,7 @@ def fingerprint(fmu: str) -> str:
 
 def _fmt_start(v: Var) -> str:
     if v.type == "Real":
-        return "NaN (None)" if math.isnan(v.start) else f"{v.start:g}"
+        return f"{v.start:g}"
     return repr(v.start) if v.type == "String" else str(v.start).lower() if v.type == "Boolean" else str(v.start)
 
 

@@ -28,7 +28,8 @@ class VehicleSlave(BisoSlave):
 
     fmu = "BisoVehicle"
     summary = ("The biso_cosim co-simulation: MuJoCo car on a scripted route (or driven by the inputs), "
-               "virtual MPU-9250 and attitude estimator in the loop; truth, readings and estimate out")
+               "virtual MPU-9250 and attitude estimator in the loop; truth, readings and estimate out. "
+               "Python-based (pythonfmu): the Python that loads it must import biso_cosim and its dependencies")
     default_step_s = 0.02  # one control period
     default_stop_s = 580.0  # loop600 (the default route) and 10 s at rest, as biso-cosim run
     fmi_options = {**BisoSlave.fmi_options, "canHandleVariableCommunicationStepSize": True,

@@ -8,17 +8,20 @@ from pathlib import Path
 from biso_cosim.cli import UserError
 
 _NAMES = ("BisoEstimator", "BisoImuPlugin", "BisoVehicle")  # biso_cosim.fmu.build.FMU_NAMES (light import)
+_NATIVE = ("BisoEstimator", "BisoImuPlugin")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "fmu",
-        help="build and validate the FMI 2.0 co-simulation FMUs (estimator, IMU plug-in, vehicle)",
+        help="build and validate the co-simulation FMUs (estimator, IMU plug-in: native C, FMI 2.0 and 3.0; "
+             "vehicle: Python)",
         description=(
-            "FMUs of biso_cosim for other co-simulation tools, built with pythonfmu: BisoEstimator "
-            "(an attitude estimator), BisoImuPlugin (virtual MPU-9250 + estimator for your vehicle), "
-            "BisoVehicle (the whole MuJoCo co-simulation). They run on the Python that loads them, "
-            "which must import biso_cosim (docs/fmu.md)."
+            "FMUs of biso_cosim for other co-simulation tools. Native (C99, no Python needed, compiled here by "
+            "the system C compiler, with their C sources inside): BisoEstimator-fmi2/-fmi3.fmu (an attitude "
+            "estimator) and BisoImuPlugin-fmi2/-fmi3.fmu (virtual MPU-9250 + estimator for your vehicle). "
+            "Python-based (pythonfmu, FMI 2.0): BisoVehicle.fmu, the whole MuJoCo co-simulation, which runs on "
+            "the Python that loads it and needs biso_cosim there (docs/fmu.md)."
         ),
     )
     commands = p.add_subparsers(dest="fmu_command", metavar="ACTION", required=True)
@@ -26,6 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     b.add_argument("--out", required=True, metavar="DIR", help="output directory")
     b.add_argument("--only", action="append", choices=_NAMES, metavar="NAME",
                    help=f"build only this FMU (repeatable): {', '.join(_NAMES)}")
+    b.add_argument("--profile", action="append", default=[], metavar="FILE",
+                   help="a sensor profile file (.toml) to build into the native BisoImuPlugin beside the built-in "
+                        "profiles (repeatable); select it with sensor.profile = its name")
     b.add_argument("--no-validate", action="store_true", help="skip FMPy's validation of the built FMUs")
     b.set_defaults(func=build)
     v = commands.add_parser("validate", help="validate FMU files with FMPy (exit code 1 on problems)")
@@ -55,11 +61,25 @@ def _report(paths: list[Path]) -> int:
 
 
 def build(args: argparse.Namespace) -> int:
-    try:
-        from biso_cosim.fmu.build import build_fmus
-    except ImportError as exc:  # pythonfmu is an optional dependency
-        raise UserError(f"building FMUs needs pythonfmu: pip install 'biso_cosim[fmu]' ({exc})") from None
-    paths = build_fmus(args.out, only=args.only)
+    from biso_cosim.fmu.build import build_fmu
+    from biso_cosim.fmu.native.compiler import CompilerNotFound
+
+    names = list(dict.fromkeys(args.only or _NAMES))
+    profiles = []
+    for item in args.profile:
+        if not Path(item).is_file():
+            raise UserError(f"--profile: no such profile file: {item}")
+        profiles.append(item)
+    paths: list[Path] = []
+    for name in names:
+        try:
+            paths += build_fmu(name, args.out, extra_profiles=profiles if name in _NATIVE else ())
+        except CompilerNotFound as exc:
+            raise UserError(str(exc)) from None
+        except ImportError as exc:  # pythonfmu is an optional dependency, needed by BisoVehicle only
+            raise UserError(f"building {name}.fmu needs pythonfmu: pip install 'biso_cosim[fmu]' ({exc})") from None
+        except ValueError as exc:  # a profile file the model refuses
+            raise UserError(str(exc)) from None
     if args.no_validate:
         for path in paths:
             print(f"built {path}")

@@ -3,7 +3,8 @@
 ``python -m biso_cosim.fmu.demos.libcosim [--duration 10]`` (needs ``pip install libcosimpy``)
 
 libcosim is a native co-simulation engine: it loads the FMUs itself (FMI Library), connects
-``BisoVehicle``'s truth outputs to ``BisoImuPlugin``'s inputs and steps both on its own
+``BisoVehicle``'s truth outputs to the native ``BisoImuPlugin-fmi2``'s inputs (libcosim
+loads FMI 1.0 and 2.0 FMUs only) and steps both on its own
 threads; Python here only builds the system and reads the results. The run is compared with
 the same connection made by the FMPy master (``demos/master.py``): libcosim passes an
 output to the connected input before the next step (a Jacobi scheme), the FMPy master right
@@ -79,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--route", default="figure8")
     parser.add_argument("--duration", type=float, default=10.0, metavar="S")
     args = parser.parse_args(argv)
-    paths = built_fmus()
-    rec = run_connected(paths["BisoVehicle"], paths["BisoImuPlugin"], route=args.route, duration_s=args.duration)
+    paths = built_fmus(("BisoImuPlugin", "BisoVehicle"))
+    rec = run_connected(paths["BisoVehicle"], paths["BisoImuPlugin-fmi2"], route=args.route, duration_s=args.duration)
     # the vehicle alone in FMPy gives the same truth, step by step
     n = len(rec["vehicle.truth.q_wb.w"])
     with FmuInstance(paths["BisoVehicle"], "fmpy", start_values={"route": args.route}) as fmu:

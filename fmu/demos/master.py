@@ -4,7 +4,7 @@
 
 ``BisoVehicle.fmu`` drives the route; after each of its steps its truth outputs (angular rate,
 specific force, attitude, position, velocity at its latest sensor sample) are set as the
-inputs of ``BisoImuPlugin.fmu``, which runs its own MPU-9250 (another seed) and estimator on
+inputs of the native ``BisoImuPlugin-fmi2.fmu`` (or ``-fmi3``), which runs its own MPU-9250 (another seed) and estimator on
 them, as it would on a host's vehicle model. The plot shows the true attitude, the vehicle's
 estimate (its sensor sees the 1 kHz physics) and the plug-in's (it sees the truth at the
 50 Hz communication steps, interpolated), and one gyro axis of both sensors.
@@ -104,19 +104,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=30.0, metavar="S", help="simulated seconds (default 30)")
     parser.add_argument("--estimator", default="biso", help="estimator of both FMUs (default biso)")
     parser.add_argument("--fmus", default=None, metavar="DIR",
-                        help="directory with BisoVehicle.fmu and BisoImuPlugin.fmu (default: build them now)")
+                        help="directory with BisoVehicle.fmu and BisoImuPlugin-fmi2.fmu (default: build them now)")
     parser.add_argument("--out", default="fmu_demo.png", metavar="PNG", help="plot file (default fmu_demo.png)")
     args = parser.parse_args(argv)
     if not (math.isfinite(args.duration) and args.duration > 0):
         parser.error("--duration must be positive")
     if args.fmus:
         folder = Path(args.fmus)
-        paths = {name: folder / f"{name}.fmu" for name in ("BisoVehicle", "BisoImuPlugin")}
+        paths = {name: folder / f"{name}.fmu" for name in ("BisoVehicle", "BisoImuPlugin-fmi2")}
     else:
         from biso_cosim.fmu.build import built_fmus
 
-        paths = built_fmus()
-    rec = connect_vehicle_and_plugin(paths["BisoVehicle"], paths["BisoImuPlugin"], route=args.route,
+        paths = built_fmus(("BisoImuPlugin", "BisoVehicle"))
+    rec = connect_vehicle_and_plugin(paths["BisoVehicle"], paths["BisoImuPlugin-fmi2"], route=args.route,
                                      duration_s=args.duration, estimator=args.estimator)
     rms = {a: math.degrees(float(np.sqrt(np.mean(rec[f"plugin.error.{a}"] ** 2))))
            for a in ("roll", "pitch", "heading")}

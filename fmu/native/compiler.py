@@ -10,7 +10,8 @@ import subprocess
 from pathlib import Path
 from typing import Sequence
 
-__all__ = ["CompilerNotFound", "find_compiler", "compile_shared", "compile_program", "CFLAGS"]
+__all__ = ["CompilerNotFound", "find_compiler", "compile_shared", "compile_objects", "link_shared", "compile_program",
+           "CFLAGS"]
 
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra")
 """The flags of every native build. ``-ffp-contract=off``: numba does not fuse a product and
@@ -57,6 +58,24 @@ def compile_shared(sources: Sequence[Path], out: Path, include_dirs: Sequence[Pa
     args += [f"-I{d}" for d in include_dirs] + [f"-D{d}" for d in defines]
     args += [str(s) for s in sources] + ["-o", str(out), "-lm"]
     _run(args)
+    return out
+
+
+def compile_objects(sources: Sequence[Path], out_dir: Path, include_dirs: Sequence[Path] = (),
+                    hidden: bool = True) -> list[Path]:
+    """Object files (position independent) of C sources, one per source, in ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    objects = [out_dir / (Path(s).stem + ".o") for s in sources]
+    for src, obj in zip(sources, objects):
+        args = [*find_compiler().split(), *CFLAGS, "-fPIC", *(["-fvisibility=hidden"] if hidden else []),
+                *(f"-I{d}" for d in include_dirs), "-c", str(src), "-o", str(obj)]
+        _run(args)
+    return objects
+
+
+def link_shared(objects: Sequence[Path], out: Path) -> Path:
+    """A shared library from object files, linked against libm only."""
+    _run([*find_compiler().split(), "-shared", *(str(o) for o in objects), "-o", str(out), "-lm"])
     return out
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-__all__ = ["NATIVE", "INCLUDE", "SENSOR_SOURCES", "write_sensor_data"]
+__all__ = ["NATIVE", "INCLUDE", "SENSOR_DIR", "SENSOR_SOURCES", "write_sensor_data"]
 
 NATIVE = Path(__file__).resolve().parent
 INCLUDE = NATIVE / "include"

@@ -110,6 +110,10 @@ double biso_mpu_time_s(const biso_mpu_params *p, const biso_mpu_state *s);
 /* One input row (finite values: the caller checks); writes the outputs it completes into
  * out (room for biso_mpu_max_outputs) and returns their number. */
 int biso_mpu_input(const biso_mpu_params *p, biso_mpu_state *s, const double row[BISO_N_IN], biso_mpu_sample *out);
+/* The same, handing each completed sample to on_sample(ctx, sample) in time order. */
+typedef void (*biso_mpu_sample_function)(void *ctx, const biso_mpu_sample *sample);
+int biso_mpu_input_each(const biso_mpu_params *p, biso_mpu_state *s, const double row[BISO_N_IN],
+                        biso_mpu_sample_function on_sample, void *ctx);
 /* sizeof the records, for hosts that allocate them (ctypes, the tests) */
 size_t biso_mpu_params_size(void);
 size_t biso_mpu_state_size(void);

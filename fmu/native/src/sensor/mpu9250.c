@@ -456,7 +456,26 @@ static void advance(long *phase, long divider) {
     *phase = q >= divider ? 0 : q;
 }
 
-int biso_mpu_input(const biso_mpu_params *p, biso_mpu_state *s, const double cur[BISO_N_IN], biso_mpu_sample *out) {
+typedef struct {
+    biso_mpu_sample *out;
+    int k;
+} collect_ctx;
+
+static void collect(void *ctx, const biso_mpu_sample *sample) {
+    collect_ctx *c = (collect_ctx *)ctx;
+    c->out[c->k++] = *sample;
+}
+
+int biso_mpu_input(const biso_mpu_params *p, biso_mpu_state *s, const double row[BISO_N_IN], biso_mpu_sample *out) {
+    collect_ctx ctx;
+    ctx.out = out;
+    ctx.k = 0;
+    return biso_mpu_input_each(p, s, row, collect, &ctx);
+}
+
+int biso_mpu_input_each(const biso_mpu_params *p, biso_mpu_state *s, const double cur[BISO_N_IN],
+                        biso_mpu_sample_function on_sample, void *ctx) {
+    biso_mpu_sample sample;
     double x[3], f[3];
     long sub, sub_lo, sub_hi;
     int k = 0, a, c;
@@ -500,7 +519,7 @@ int biso_mpu_input(const biso_mpu_params *p, biso_mpu_state *s, const double cur
             mag_commit(s);
         }
         if (ph[4] == 0) {
-            output(p, s, b, &out[k]);
+            output(p, s, b, &sample);
             if (p->mag_trigger_div > 0) {
                 /* single mode: the driver writes CNTL1 after reading, every 1 + I2C_MST_DLY
                  * samples; a write during a measurement is ignored */
@@ -513,6 +532,7 @@ int biso_mpu_input(const biso_mpu_params *p, biso_mpu_state *s, const double cur
             }
             s->ch[0].sat = 0;
             s->ch[1].sat = 0;
+            on_sample(ctx, &sample); /* after the trigger: the sample is complete */
             k++;
         }
         s->tick = b + 1;

@@ -1,0 +1,555 @@
+/* The FMI 3.0 co-simulation interface of a native FMU: fmi3* calls into fmu_core. Scalar
+ * variables only (the variables are the FMI 2.0 ones); Model Exchange and Scheduled
+ * Execution are not provided, nor clocks, event mode or intermediate updates. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi3Functions.h"
+#include "fmu_core.h"
+
+typedef struct {
+    fmi3InstanceEnvironment env;
+    fmi3LogMessageCallback log_message;
+} shell3;
+
+#define INST ((biso_instance *)instance)
+#define CHECK_INSTANCE(name)       \
+    if (!instance) return fmi3Error; \
+    INST->function = name
+
+static void log3(biso_instance *inst, int status, const char *category, const char *message) {
+    shell3 *s = (shell3 *)inst->shell;
+    if (s->log_message) s->log_message(s->env, (fmi3Status)status, category, message);
+}
+
+static fmi3Status unsupported(fmi3Instance instance, const char *function, const char *why) {
+    if (!instance) return fmi3Error;
+    biso_log(INST, BISO_ERROR, "%s: not supported by %s (%s)", function, BISO_FMU_NAME, why);
+    return fmi3Error;
+}
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[]) {
+    (void)nCategories;
+    (void)categories;
+    CHECK_INSTANCE("fmi3SetDebugLogging");
+    INST->logging_on = loggingOn;
+    return fmi3OK;
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateModelExchange: " BISO_FMU_NAME " is a co-simulation FMU only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                         fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                         fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                         const fmi3ValueReference requiredIntermediateVariables[],
+                                         size_t nRequiredIntermediateVariables,
+                                         fmi3InstanceEnvironment instanceEnvironment,
+                                         fmi3LogMessageCallback logMessage,
+                                         fmi3IntermediateUpdateCallback intermediateUpdate) {
+    biso_instance *inst;
+    shell3 *s;
+    (void)resourcePath;
+    (void)visible;
+    (void)earlyReturnAllowed;
+    (void)requiredIntermediateVariables;
+    (void)nRequiredIntermediateVariables;
+    (void)intermediateUpdate;
+    if (!instantiationToken || strcmp(instantiationToken, BISO_FMU_TOKEN) != 0 || eventModeUsed) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       eventModeUsed ? "fmi3InstantiateCoSimulation: " BISO_FMU_NAME " has no event mode "
+                                       "(hasEventMode=false)"
+                                     : "fmi3InstantiateCoSimulation: the instantiation token is not " BISO_FMU_NAME
+                                       "'s " BISO_FMU_TOKEN " (a modelDescription.xml of another build?)");
+        return NULL;
+    }
+    inst = (biso_instance *)calloc(1, sizeof *inst);
+    s = (shell3 *)calloc(1, sizeof *s);
+    if (!inst || !s) {
+        free(inst);
+        free(s);
+        return NULL;
+    }
+    s->env = instanceEnvironment;
+    s->log_message = logMessage;
+    inst->shell = s;
+    inst->log = log3;
+    inst->logging_on = loggingOn;
+    strncpy(inst->name, instanceName ? instanceName : "", sizeof inst->name - 1);
+    biso_start_values(inst);
+    return inst;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateScheduledExecution: " BISO_FMU_NAME " is a co-simulation FMU only");
+    return NULL;
+}
+
+void fmi3FreeInstance(fmi3Instance instance) {
+    if (!instance) return;
+    free(INST->shell);
+    free(instance);
+}
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    (void)toleranceDefined;
+    (void)tolerance;
+    (void)stopTimeDefined;
+    (void)stopTime;
+    CHECK_INSTANCE("fmi3EnterInitializationMode");
+    return (fmi3Status)biso_enter_initialization(INST, startTime);
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    CHECK_INSTANCE("fmi3ExitInitializationMode");
+    return (fmi3Status)biso_exit_initialization(INST);
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+    return unsupported(instance, "fmi3EnterEventMode", "hasEventMode=false");
+}
+
+fmi3Status fmi3Terminate(fmi3Instance instance) {
+    CHECK_INSTANCE("fmi3Terminate");
+    return (fmi3Status)biso_terminate(INST);
+}
+
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    CHECK_INSTANCE("fmi3Reset");
+    return (fmi3Status)biso_reset(INST);
+}
+
+/* ---- values --------------------------------------------------------------------------- */
+
+/* time (value reference 0, the independent variable) reads as the current time */
+static int get_float64(biso_instance *inst, fmi3ValueReference vr, fmi3Float64 *value) {
+    if (vr == 0) {
+        *value = inst->core.time;
+        return BISO_OK;
+    }
+    return biso_get_real(inst, vr, value);
+}
+
+static int get_boolean(biso_instance *inst, fmi3ValueReference vr, fmi3Boolean *value) {
+    int v = 0, s = biso_get_boolean(inst, vr, &v);
+    *value = v != 0;
+    return s;
+}
+
+#define GETTER(Name, ctype, call)                                                                          \
+    fmi3Status fmi3Get##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, ctype values[], size_t nValues) {                    \
+        size_t i;                                                                                          \
+        int status = fmi3OK;                                                                               \
+        CHECK_INSTANCE("fmi3Get" #Name);                                                                   \
+        if (nValues != nValueReferences) {                                                                 \
+            biso_log(INST, BISO_ERROR, "fmi3Get" #Name ": every variable is a scalar: nValues must equal " \
+                     "nValueReferences");                                                                  \
+            return fmi3Error;                                                                              \
+        }                                                                                                  \
+        for (i = 0; i < nValueReferences; i++) {                                                           \
+            int s = call;                                                                                  \
+            if (s > status) status = s;                                                                    \
+        }                                                                                                  \
+        return (fmi3Status)status;                                                                         \
+    }
+
+GETTER(Float64, fmi3Float64, get_float64(INST, valueReferences[i], &values[i]))
+GETTER(Int32, fmi3Int32, biso_get_integer(INST, valueReferences[i], &values[i]))
+GETTER(Boolean, fmi3Boolean, get_boolean(INST, valueReferences[i], &values[i]))
+GETTER(String, fmi3String, biso_get_string(INST, valueReferences[i], &values[i]))
+
+#define SETTER(Name, ctype, call)                                                                          \
+    fmi3Status fmi3Set##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, const ctype values[], size_t nValues) {              \
+        size_t i;                                                                                          \
+        int status = fmi3OK;                                                                               \
+        CHECK_INSTANCE("fmi3Set" #Name);                                                                   \
+        if (nValues != nValueReferences) {                                                                 \
+            biso_log(INST, BISO_ERROR, "fmi3Set" #Name ": every variable is a scalar: nValues must equal " \
+                     "nValueReferences");                                                                  \
+            return fmi3Error;                                                                              \
+        }                                                                                                  \
+        biso_begin_set(INST, "fmi3Set" #Name);                                                             \
+        for (i = 0; i < nValueReferences; i++) {                                                           \
+            int s = call;                                                                                  \
+            if (s > status) status = s;                                                                    \
+        }                                                                                                  \
+        return (fmi3Status)biso_end_set(INST, status);                                                     \
+    }
+
+SETTER(Float64, fmi3Float64, biso_set_real(INST, valueReferences[i], values[i]))
+SETTER(Int32, fmi3Int32, biso_set_integer(INST, valueReferences[i], values[i]))
+SETTER(Boolean, fmi3Boolean, biso_set_boolean(INST, valueReferences[i], values[i]))
+SETTER(String, fmi3String, biso_set_string(INST, valueReferences[i], values[i]))
+
+/* types this FMU has no variable of: any value reference is an error */
+#define NO_VARIABLES(Name, ctype)                                                                          \
+    fmi3Status fmi3Get##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, ctype values[], size_t nValues) {                    \
+        (void)valueReferences;                                                                             \
+        (void)values;                                                                                      \
+        (void)nValues;                                                                                     \
+        if (!instance) return fmi3Error;                                                                   \
+        if (nValueReferences == 0) return fmi3OK;                                                          \
+        biso_log(INST, BISO_ERROR, "fmi3Get" #Name ": %s has no " #Name " variables", BISO_FMU_NAME);      \
+        return fmi3Error;                                                                                  \
+    }                                                                                                      \
+    fmi3Status fmi3Set##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, const ctype values[], size_t nValues) {              \
+        (void)valueReferences;                                                                             \
+        (void)values;                                                                                      \
+        (void)nValues;                                                                                     \
+        if (!instance) return fmi3Error;                                                                   \
+        if (nValueReferences == 0) return fmi3OK;                                                          \
+        biso_log(INST, BISO_ERROR, "fmi3Set" #Name ": %s has no " #Name " variables", BISO_FMU_NAME);      \
+        return fmi3Error;                                                                                  \
+    }
+
+NO_VARIABLES(Float32, fmi3Float32)
+NO_VARIABLES(Int8, fmi3Int8)
+NO_VARIABLES(UInt8, fmi3UInt8)
+NO_VARIABLES(Int16, fmi3Int16)
+NO_VARIABLES(UInt16, fmi3UInt16)
+NO_VARIABLES(UInt32, fmi3UInt32)
+NO_VARIABLES(Int64, fmi3Int64)
+NO_VARIABLES(UInt64, fmi3UInt64)
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    if (!instance) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    return unsupported(instance, "fmi3GetBinary", "no Binary variables");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    if (!instance) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    return unsupported(instance, "fmi3SetBinary", "no Binary variables");
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)values;
+    return unsupported(instance, "fmi3GetClock", "no clocks");
+}
+
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)values;
+    return unsupported(instance, "fmi3SetClock", "no clocks");
+}
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    (void)valueReference;
+    (void)nDependencies;
+    return unsupported(instance, "fmi3GetNumberOfVariableDependencies", "dependencies are not declared");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[],
+                                       fmi3DependencyKind dependencyKinds[], size_t nDependencies) {
+    (void)dependent;
+    (void)elementIndicesOfDependent;
+    (void)independents;
+    (void)elementIndicesOfIndependents;
+    (void)dependencyKinds;
+    (void)nDependencies;
+    return unsupported(instance, "fmi3GetVariableDependencies", "dependencies are not declared");
+}
+
+/* ---- FMU state ------------------------------------------------------------------------ */
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    biso_core *copy;
+    CHECK_INSTANCE("fmi3GetFMUState");
+    if (!FMUState) return fmi3Error;
+    copy = (biso_core *)*FMUState;
+    if (!copy) copy = (biso_core *)malloc(sizeof *copy);
+    if (!copy) {
+        biso_log(INST, BISO_ERROR, "fmi3GetFMUState: out of memory");
+        return fmi3Error;
+    }
+    memcpy(copy, &INST->core, sizeof *copy);
+    *FMUState = copy;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    CHECK_INSTANCE("fmi3SetFMUState");
+    if (!FMUState) {
+        biso_log(INST, BISO_ERROR, "fmi3SetFMUState: no state given");
+        return fmi3Error;
+    }
+    memcpy(&INST->core, FMUState, sizeof INST->core);
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    CHECK_INSTANCE("fmi3FreeFMUState");
+    if (FMUState) {
+        free(*FMUState);
+        *FMUState = NULL;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size) {
+    (void)FMUState;
+    CHECK_INSTANCE("fmi3SerializedFMUStateSize");
+    if (!size) return fmi3Error;
+    *size = biso_serialized_size();
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+                                 size_t size) {
+    CHECK_INSTANCE("fmi3SerializeFMUState");
+    if (!FMUState || !serializedState || size < biso_serialized_size()) {
+        biso_log(INST, BISO_ERROR, "fmi3SerializeFMUState: needs a state and %lu bytes",
+                 (unsigned long)biso_serialized_size());
+        return fmi3Error;
+    }
+    biso_serialize((const biso_core *)FMUState, (unsigned char *)serializedState);
+    return fmi3OK;
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState) {
+    biso_core *copy;
+    CHECK_INSTANCE("fmi3DeserializeFMUState");
+    if (!FMUState) return fmi3Error;
+    copy = (biso_core *)malloc(sizeof *copy);
+    if (!copy) return fmi3Error;
+    if (biso_deserialize(INST, (const unsigned char *)serializedState, size, copy) != BISO_OK) {
+        free(copy);
+        return fmi3Error;
+    }
+    free(*FMUState);
+    *FMUState = copy;
+    return fmi3OK;
+}
+
+/* ---- what this FMU does not provide --------------------------------------------------- */
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                        size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    (void)unknowns; (void)nUnknowns; (void)knowns; (void)nKnowns; (void)seed; (void)nSeed; (void)sensitivity;
+    (void)nSensitivity;
+    return unsupported(instance, "fmi3GetDirectionalDerivative", "providesDirectionalDerivative=false");
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    (void)unknowns; (void)nUnknowns; (void)knowns; (void)nKnowns; (void)seed; (void)nSeed; (void)sensitivity;
+    (void)nSensitivity;
+    return unsupported(instance, "fmi3GetAdjointDerivative", "providesAdjointDerivatives=false");
+}
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
+    return unsupported(instance, "fmi3EnterConfigurationMode", "no structural parameters");
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
+    return unsupported(instance, "fmi3ExitConfigurationMode", "no structural parameters");
+}
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, fmi3Float64 intervals[], fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences; (void)nValueReferences; (void)intervals; (void)qualifiers;
+    return unsupported(instance, "fmi3GetIntervalDecimal", "no clocks");
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences; (void)nValueReferences; (void)counters; (void)resolutions; (void)qualifiers;
+    return unsupported(instance, "fmi3GetIntervalFraction", "no clocks");
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, fmi3Float64 shifts[]) {
+    (void)valueReferences; (void)nValueReferences; (void)shifts;
+    return unsupported(instance, "fmi3GetShiftDecimal", "no clocks");
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[]) {
+    (void)valueReferences; (void)nValueReferences; (void)counters; (void)resolutions;
+    return unsupported(instance, "fmi3GetShiftFraction", "no clocks");
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
+    (void)valueReferences; (void)nValueReferences; (void)intervals;
+    return unsupported(instance, "fmi3SetIntervalDecimal", "no clocks");
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[]) {
+    (void)valueReferences; (void)nValueReferences; (void)counters; (void)resolutions;
+    return unsupported(instance, "fmi3SetIntervalFraction", "no clocks");
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, const fmi3Float64 shifts[]) {
+    (void)valueReferences; (void)nValueReferences; (void)shifts;
+    return unsupported(instance, "fmi3SetShiftDecimal", "no clocks");
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
+    (void)valueReferences; (void)nValueReferences; (void)counters; (void)resolutions;
+    return unsupported(instance, "fmi3SetShiftFraction", "no clocks");
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
+    return unsupported(instance, "fmi3EvaluateDiscreteStates", "providesEvaluateDiscreteStates=false");
+}
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    (void)discreteStatesNeedUpdate; (void)terminateSimulation; (void)nominalsOfContinuousStatesChanged;
+    (void)valuesOfContinuousStatesChanged; (void)nextEventTimeDefined; (void)nextEventTime;
+    return unsupported(instance, "fmi3UpdateDiscreteStates", "no event mode");
+}
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
+    return unsupported(instance, "fmi3EnterContinuousTimeMode", "co-simulation only");
+}
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint; (void)enterEventMode; (void)terminateSimulation;
+    return unsupported(instance, "fmi3CompletedIntegratorStep", "co-simulation only");
+}
+
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
+    (void)time;
+    return unsupported(instance, "fmi3SetTime", "co-simulation only");
+}
+
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates; (void)nContinuousStates;
+    return unsupported(instance, "fmi3SetContinuousStates", "co-simulation only");
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates) {
+    (void)derivatives; (void)nContinuousStates;
+    return unsupported(instance, "fmi3GetContinuousStateDerivatives", "co-simulation only");
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
+    (void)eventIndicators; (void)nEventIndicators;
+    return unsupported(instance, "fmi3GetEventIndicators", "co-simulation only");
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[], size_t nContinuousStates) {
+    (void)continuousStates; (void)nContinuousStates;
+    return unsupported(instance, "fmi3GetContinuousStates", "co-simulation only");
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates) {
+    (void)nominals; (void)nContinuousStates;
+    return unsupported(instance, "fmi3GetNominalsOfContinuousStates", "co-simulation only");
+}
+
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
+    CHECK_INSTANCE("fmi3GetNumberOfEventIndicators");
+    if (nEventIndicators) *nEventIndicators = 0;
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
+    CHECK_INSTANCE("fmi3GetNumberOfContinuousStates");
+    if (nContinuousStates) *nContinuousStates = 0;
+    return fmi3OK;
+}
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
+    CHECK_INSTANCE("fmi3EnterStepMode");
+    return fmi3OK; /* without event mode, step mode follows initialization directly */
+}
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
+                                    size_t nValues) {
+    (void)valueReferences; (void)nValueReferences; (void)orders; (void)values; (void)nValues;
+    return unsupported(instance, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder=0");
+}
+
+fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
+                      fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
+                      fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
+    int status;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    CHECK_INSTANCE("fmi3DoStep");
+    status = biso_do_step(INST, currentCommunicationPoint, communicationStepSize);
+    if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (earlyReturn) *earlyReturn = fmi3False;
+    if (lastSuccessfulTime) *lastSuccessfulTime = INST->core.time;
+    return (fmi3Status)status;
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) {
+    (void)clockReference;
+    (void)activationTime;
+    return unsupported(instance, "fmi3ActivateModelPartition", "co-simulation only");
+}
