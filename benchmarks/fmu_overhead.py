@@ -1,140 +1,184 @@
-"""Cost of running the models as FMUs in FMPy against the same work called directly in Python.
+"""Cost of the native FMUs against the numba path, all measured in this one run.
 
-Per-step cost of each FMU (fmi2SetReal of the inputs, fmi2DoStep, fmi2GetReal of the main
-outputs, by value reference: what a master does each step) against the Python call that
-does the same work; and the wall time of a whole route through ``BisoVehicle.fmu`` against
-``CoSimulation(...).run()`` (what ``biso-cosim run`` runs), both measured in this process.
+Per step (set the inputs, DoStep, get the main outputs, by value reference: what a master
+does each step):
 
-    python benchmarks/fmu_overhead.py                         # loop600, the whole route
-    python benchmarks/fmu_overhead.py --duration 60 --steps 2000
+* BisoEstimator (biso_plus, one sample per step, FMI 2.0 and 3.0) in the project's C master
+  and in FMPy, next to the numba estimator's cost per sample (its batch update, and one
+  Python call per sample); goal ≤ 1 µs per DoStep in the C master;
+* BisoImuPlugin (1 ms truth steps, biso_plus) in the C master and in FMPy, next to
+  MPU9250.simulate + the estimator on the same truth (numba, batch) per 1 ms; goal ≤ 5 µs;
+* a whole route (loop600 by default) fed from a recorded truth: the native plug-in in the C
+  master against the numba path on the same truth rows (the Earth field, MPU9250.simulate
+  and the estimator, each on the whole array); goal within 1.5× of the numba path;
+* BisoVehicle.fmu (Python, pythonfmu) over the route in FMPy against CoSimulation.run.
+
+    python benchmarks/fmu_overhead.py                       # loop600
+    python benchmarks/fmu_overhead.py --route slalom --steps 20000 --no-vehicle
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from biso_cosim.fmu.demos.native import compile_master, run_native
 from biso_cosim.fmu.host import FmuInstance
 from biso_cosim.fmu.variables import AXES, QUAT
 from biso_cosim.motions import make_motion
 
+EST_OUT = [f"estimate.q_wb.{c}" for c in QUAT]
+TRUTH = [f"omega_b.{c}" for c in AXES] + [f"specific_force_b.{c}" for c in AXES] + [f"q_wb.{c}" for c in QUAT]
 
-def _loop(fmu: FmuInstance, inputs: list[str], rows: np.ndarray, outputs: list[str], step: float) -> float:
-    """Seconds per step of set inputs / doStep / get outputs through FMPy."""
+
+def _fmpy_loop(fmu: FmuInstance, inputs: list[str], rows: np.ndarray, outputs: list[str], step: float) -> float:
+    """Seconds per step of set inputs / DoStep / get outputs through FMPy."""
     var = fmu.variables
     vr_in = [var[n].valueReference for n in inputs]
     vr_out = [var[n].valueReference for n in outputs]
     raw = fmu.fmu
+    three = fmu.fmi_version == 3
+    set_real, get_real = (raw.setFloat64, raw.getFloat64) if three else (raw.setReal, raw.getReal)
     values = rows.tolist()
     t, start = 0.0, time.perf_counter()
     for row in values:
-        raw.setReal(vr_in, row)
+        set_real(vr_in, row)
         raw.doStep(t, step)
-        raw.getReal(vr_out)
+        get_real(vr_out)
         t += step
     return (time.perf_counter() - start) / len(values)
 
 
-def estimator(path: Path, steps: int) -> tuple[float, float, float]:
+def _master_per_step(master, path, step, rows: dict, start: dict, workdir: Path) -> float:
+    """Seconds per step (set inputs / DoStep / get outputs) in the C master, from its --time line."""
+    run = run_native(master, path, step, len(next(iter(rows.values()))), start=start, input_rows=rows,
+                     outputs=EST_OUT, options=["--time", "--quiet"], workdir=workdir)
+    if run.returncode:
+        raise RuntimeError(run.log[-2000:])
+    return float(re.search(r"time per DoStep: ([0-9.]+) ns", run.log).group(1)) * 1e-9
+
+
+def estimator(paths, master, steps: int, tmp: Path) -> None:
     from biso_cosim.estimators import make_estimator
 
     m = make_motion("tumble", duration_s=steps / 200.0, fs_hz=200.0)
-    rows = np.hstack([m.omega_b, m.specific_force_b, m.mag_b])
+    data = np.hstack([m.omega_b, m.specific_force_b, m.mag_b])
     inputs = [f"{h}.{c}" for h in ("gyro_s", "accel_s", "mag_s") for c in AXES]
-    with FmuInstance(path, "bench") as fmu:
-        per_fmu = _loop(fmu, inputs, rows, [f"estimate.q_wb.{c}" for c in QUAT], 0.005)
-    est = make_estimator("biso", 200.0)
+    rows = {name: data[:, k] for k, name in enumerate(inputs)}
+    start = {"estimator": "biso_plus"}
+    est = make_estimator("biso_plus", 200.0)
+    est.update(m.omega_b[:10], m.specific_force_b[:10], m.mag_b[:10])  # compiled
+    est.reset()
+    t0 = time.perf_counter()
+    est.update(m.omega_b, m.specific_force_b, m.mag_b)
+    batch = (time.perf_counter() - t0) / len(m)
+    est.reset()
     g, a, mag = (np.ascontiguousarray(x[:, None, :]) for x in (m.omega_b, m.specific_force_b, m.mag_b))
-    start = time.perf_counter()
+    t0 = time.perf_counter()
     for i in range(len(m)):
         est.update(g[i], a[i], mag[i])
-    per_python = (time.perf_counter() - start) / len(m)
-    est.reset()
-    start = time.perf_counter()
-    est.update(m.omega_b, m.specific_force_b, m.mag_b)
-    per_batch = (time.perf_counter() - start) / len(m)
-    return per_fmu, per_python, per_batch
+    per_call = (time.perf_counter() - t0) / len(m)
+    print(f"BisoEstimator (biso_plus, one sample per step), {steps} steps; numba: batch {batch * 1e6:.3f} µs/sample, "
+          f"one Python call per sample {per_call * 1e6:.2f} µs")
+    for version in ("fmi2", "fmi3"):
+        c = _master_per_step(master, paths[f"BisoEstimator-{version}"], 0.005, rows, start, tmp / f"e{version}")
+        with FmuInstance(paths[f"BisoEstimator-{version}"], "bench", start_values=start) as fmu:
+            f = _fmpy_loop(fmu, inputs, data, EST_OUT, 0.005)
+        print(f"  {version}: C master {c * 1e6:6.3f} µs per DoStep ({c / batch:5.1f}× numba batch; goal ≤ 1 µs: "
+              f"{'met' if c <= 1e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step")
 
 
-def plugin(path: Path, steps: int) -> tuple[float, float]:
+def plugin(paths, master, steps: int, tmp: Path) -> None:
+    m = make_motion("circle", duration_s=steps / 1000.0, fs_hz=1000.0)
+    data = np.hstack([m.omega_b, m.specific_force_b, m.q_wb])
+    rows = {name: data[:, k] for k, name in enumerate(TRUTH)}
+    start = {"estimator": "biso_plus"}
+    numba = _numba_path(0.001, m.omega_b, m.specific_force_b, m.q_wb, np.zeros((len(m.t_s), 3)))
+    print(f"BisoImuPlugin (1 ms truth steps, biso_plus), {steps} steps; numba (field + MPU9250.simulate + "
+          f"estimator, batch) {numba * 1e6:.2f} µs per 1 ms")
+    outputs = [f"gyro_b.{c}" for c in AXES] + EST_OUT + ["error.total"]
+    for version in ("fmi2", "fmi3"):
+        c = _master_per_step(master, paths[f"BisoImuPlugin-{version}"], 0.001, rows, start, tmp / f"p{version}")
+        with FmuInstance(paths[f"BisoImuPlugin-{version}"], "bench", start_values=start) as fmu:
+            f = _fmpy_loop(fmu, TRUTH, data, outputs, 0.001)
+        print(f"  {version}: C master {c * 1e6:6.3f} µs per 1 ms step ({c / numba:5.2f}× numba; goal ≤ 5 µs: "
+              f"{'met' if c <= 5e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step")
+
+
+def _numba_path(h, omega, force, q_wb, pos) -> float:
+    """Seconds per truth row of the plug-in's work on the numba path (batch calls)."""
     from biso_cosim.estimators import make_estimator
     from biso_cosim.sensors import MPU9250, EarthField, MagneticEnvironment
 
-    m = make_motion("circle", duration_s=steps / 1000.0, fs_hz=1000.0)
-    rows = np.hstack([m.omega_b, m.specific_force_b, m.q_wb])
-    inputs = ([f"omega_b.{c}" for c in AXES] + [f"specific_force_b.{c}" for c in AXES]
-              + [f"q_wb.{c}" for c in QUAT])
-    outputs = [f"gyro_b.{c}" for c in AXES] + [f"estimate.q_wb.{c}" for c in QUAT] + ["error.total"]
-    with FmuInstance(path, "bench") as fmu:
-        per_fmu = _loop(fmu, inputs, rows, outputs, 0.001)
-    earth = EarthField()
-    env = MagneticEnvironment(earth)
-    imu = MPU9250("mpu9250_calibrated", seed=0, input_rate_hz=1000.0)
-    est = make_estimator("biso", imu.output_rate_hz, declination_rad=earth.declination_rad)
-    zero = np.zeros((1, 3))
-    start = time.perf_counter()
-    for i in range(len(m)):
-        q = m.q_wb[i:i + 1]
-        s = imu.simulate(m.omega_b[i:i + 1], m.specific_force_b[i:i + 1], env.field_b(q, zero))
-        if len(s.t_s):
-            est.update(s.gyro_b, s.accel_b, s.mag_b)
-    per_python = (time.perf_counter() - start) / len(m)
-    return per_fmu, per_python
+    env = MagneticEnvironment(EarthField())
+    for warm in (True, False):
+        n = 50 if warm else len(omega)
+        imu = MPU9250("mpu9250_calibrated", seed=0, input_rate_hz=1.0 / h)
+        est = make_estimator("biso_plus", imu.output_rate_hz, declination_rad=env.earth.declination_rad)
+        t0 = time.perf_counter()
+        s = imu.simulate(omega[:n], force[:n], env.field_b(q_wb[:n], pos[:n]))
+        est.update(s.gyro_b, s.accel_b, s.mag_b)
+        elapsed = time.perf_counter() - t0
+    return elapsed / len(omega)
 
 
-def vehicle(path: Path, route: str, duration: float | None) -> tuple[float, float, float]:
+def route(paths, master, name: str, tmp: Path, with_vehicle: bool) -> None:
     from biso_cosim.cosim import CoSimulation
 
-    sim = CoSimulation(route, duration_s=duration, seed=0, estimators=["biso"])
-    duration = sim.duration_s
-    start = time.perf_counter()
-    sim.run()
-    python_s = time.perf_counter() - start
-    outputs = ([f"truth.q_wb.{c}" for c in QUAT] + [f"gyro_b.{c}" for c in AXES] + [f"accel_b.{c}" for c in AXES]
-               + [f"mag_b.{c}" for c in AXES] + [f"estimate.q_wb.{c}" for c in QUAT] + ["error.total", "sample_time"])
-    with FmuInstance(path, "bench", start_values={"route": route, "estimator": "biso"}, stop_time=duration) as fmu:
-        vr_out = [fmu.variables[n].valueReference for n in outputs]
-        raw = fmu.fmu
-        n = sim.n_chunks
-        t, start = 0.0, time.perf_counter()
-        for _ in range(n):
-            raw.doStep(t, 0.02)
-            raw.getReal(vr_out)
-            t += 0.02
-        fmu_s = time.perf_counter() - start
-    return duration, python_s, fmu_s
+    sim = CoSimulation(name, seed=0, estimators=["biso"])
+    t0 = time.perf_counter()
+    result = sim.run()
+    run_s = time.perf_counter() - t0
+    t = result.truth
+    h = float(np.median(np.diff(t.t_s)))
+    rows = {f"omega_b.{c}": t.omega_b[:, k] for k, c in enumerate(AXES)}
+    rows.update({f"specific_force_b.{c}": t.specific_force_b[:, k] for k, c in enumerate(AXES)})
+    rows.update({f"q_wb.{c}": t.q_wb[:, k] for k, c in enumerate(QUAT)})
+    rows.update({f"pos_w.{c}": t.pos_w[:, k] for k, c in enumerate(AXES)})
+    n = len(t.t_s)
+    numba = _numba_path(h, t.omega_b, t.specific_force_b, t.q_wb, t.pos_w) * n
+    native = _master_per_step(master, paths["BisoImuPlugin-fmi2"], h, rows, {"estimator": "biso_plus"},
+                              tmp / "route") * n
+    print(f"{name} ({sim.duration_s:g} s) fed from its recorded truth ({n} rows, {h * 1e3:g} ms): native plug-in in "
+          f"the C master {native * 1e3:.1f} ms, numba path {numba * 1e3:.1f} ms: {native / numba:.2f}× "
+          f"(goal ≤ 1.5×: {'met' if native <= 1.5 * numba else 'NOT met'})")
+    if with_vehicle:
+        outputs = ([f"truth.q_wb.{c}" for c in QUAT] + [f"gyro_b.{c}" for c in AXES] + EST_OUT + ["error.total"])
+        with FmuInstance(paths["BisoVehicle"], "bench", start_values={"route": name, "estimator": "biso"},
+                         stop_time=sim.duration_s) as fmu:
+            vr_out = [fmu.variables[k].valueReference for k in outputs]
+            raw = fmu.fmu
+            tt, t0 = 0.0, time.perf_counter()
+            for _ in range(sim.n_chunks):
+                raw.doStep(tt, 0.02)
+                raw.getReal(vr_out)
+                tt += 0.02
+            fmu_s = time.perf_counter() - t0
+        print(f"BisoVehicle.fmu (Python) over {name} in FMPy {fmu_s:.1f} s, CoSimulation.run {run_s:.1f} s: "
+              f"{fmu_s / run_s:.2f}×")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=4000, help="steps of the per-step measurements (default 4000)")
+    parser.add_argument("--steps", type=int, default=20000, help="steps of the per-step measurements (default 20000)")
     parser.add_argument("--route", default="loop600", help="route of the whole-run comparison (default loop600)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="simulated seconds of the whole run (default: the route's, as biso-cosim run)")
-    parser.add_argument("--fmus", default=None, metavar="DIR", help="directory with built FMUs (default: build now)")
+    parser.add_argument("--no-vehicle", action="store_true", help="leave out BisoVehicle.fmu (Python)")
     args = parser.parse_args()
-    if args.fmus:
-        paths = {n: Path(args.fmus) / f"{n}.fmu" for n in ("BisoEstimator", "BisoImuPlugin", "BisoVehicle")}
-    else:
-        from biso_cosim.fmu.build import built_fmus
+    from biso_cosim.fmu.build import built_fmus
 
-        paths = built_fmus()
-    estimator(paths["BisoEstimator"], 200)  # compile and warm up both paths
-    plugin(paths["BisoImuPlugin"], 200)
-
-    fmu, python, batch = estimator(paths["BisoEstimator"], args.steps)
-    print(f"BisoEstimator: {fmu * 1e6:7.1f} µs per step in FMPy; estimator.update per sample in Python "
-          f"{python * 1e6:6.1f} µs ({fmu / python:5.1f}×); batch {batch * 1e6:.2f} µs/sample ({fmu / batch:.0f}×)")
-    fmu, python = plugin(paths["BisoImuPlugin"], args.steps)
-    print(f"BisoImuPlugin: {fmu * 1e6:7.1f} µs per 1 ms step in FMPy; MPU9250.simulate + estimator per 1 ms "
-          f"in Python {python * 1e6:6.1f} µs ({fmu / python:5.1f}×)")
-    duration, python_s, fmu_s = vehicle(paths["BisoVehicle"], args.route, args.duration)
-    print(f"BisoVehicle:   {args.route}, {duration:g} s simulated: CoSimulation.run (biso-cosim run) "
-          f"{python_s:6.1f} s, through BisoVehicle.fmu in FMPy {fmu_s:6.1f} s: {fmu_s / python_s:.3f}× "
-          "(aim ≤ 1.5×)")
+    names = ("BisoEstimator", "BisoImuPlugin") + (() if args.no_vehicle else ("BisoVehicle",))
+    paths = built_fmus(names)
+    with tempfile.TemporaryDirectory(prefix="biso_bench_") as tmp:
+        tmp = Path(tmp)
+        master = compile_master(tmp)
+        estimator(paths, master, args.steps, tmp)
+        plugin(paths, master, args.steps, tmp)
+        route(paths, master, args.route, tmp, not args.no_vehicle)
 
 
 if __name__ == "__main__":
