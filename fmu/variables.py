@@ -464,7 +464,8 @@ def _truth_inputs() -> list[Var]:
     out = _vector("omega_b", "input", "true angular rate of the body, body axes", "rad/s", ("omega",))
     out += _vector("specific_force_b", "input", "true specific force at the sensor (+g up at rest), body axes",
                    "m/s2", ("force",), start=(0.0, 0.0, 9.80665))
-    out += _vector("q_wb", "input", "true attitude q_wb (Hamilton, body → ENU; normalised on use)", "", ("q",),
+    out += _vector("q_wb", "input", "true attitude q_wb (Hamilton, body → ENU; a unit quaternion, |q| = 1 ± 1e-5, "
+                   "normalised on use)", "", ("q",),
                    start=(1.0, 0.0, 0.0, 0.0), components=QUAT)
     out += _vector("pos_w", "input", "position of the sensor, local ENU (for the magnetic field)", "m",
                    ("pos",))
@@ -476,7 +477,12 @@ def _truth_inputs() -> list[Var]:
 
 
 def _imu_plugin_fmu() -> list[Var]:
-    out = sensor_variables(profile_default="mpu9250_calibrated") + site_variables()
+    out = sensor_variables(profile_default="mpu9250_calibrated")
+    out += _vector("sensor.position_b", "parameter", "position of the chip relative to the point whose motion the "
+                   "inputs give (lever arm, biso_cosim.plugin.Mounting.position_m), body axes: the chip feels "
+                   "f + ω × (ω × r) + ω̇ × r (ω̇ from the rate's slope between steps) and sits at p + q ∘ r ∘ q*",
+                   "m", ("position",), variability="fixed")
+    out += site_variables()
     out += [
         Var("use_temperature", "Boolean", "parameter", "fixed", False, "use the temperature input as the die "
             "temperature", key=("use_temperature",)),

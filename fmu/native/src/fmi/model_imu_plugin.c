@@ -8,7 +8,10 @@
  * date) is rotated into body axes with the given attitude. The outputs after the step from
  * t_k are those of the samples the chip latched at t <= t_k (new_samples of them; none:
  * outputs held); every sample goes to the estimator, and the error is the estimate's
- * against the truth attitude interpolated (nlerp) to the sample's time stamp. */
+ * against the truth attitude interpolated (nlerp) to the sample's time stamp. This is the model
+ * of biso_cosim.plugin.ImuPlugin (ENU world, FLU body, scalar-first quaternions): the same
+ * lever arm (sensor.position_b), the sensor's flags given to the estimator, a unit
+ * quaternion required (|q| = 1 ± 1e-5), bit for bit. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -114,6 +117,11 @@ int model_configure(biso_instance *inst, char *msg, size_t len) {
         return 1;
     }
     m->use_temperature = b[B_USE_TEMPERATURE];
+    m->feed_flags = (biso_est_inputs(m->kind) & BISO_EST_INPUT_IMU_FLAGS) != 0;
+    m->position_b[0] = r[R_SENSOR_POSITION_B_X];
+    m->position_b[1] = r[R_SENSOR_POSITION_B_Y];
+    m->position_b[2] = r[R_SENSOR_POSITION_B_Z];
+    m->lever = m->position_b[0] != 0.0 || m->position_b[1] != 0.0 || m->position_b[2] != 0.0;
     m->start_time = inst->core.time;
     biso_est_peek(&m->est, &out);
     biso_put_estimate(inst, &out);
@@ -171,7 +179,7 @@ static void on_sample(void *ctx_, const biso_mpu_sample *s) {
     in.speed_mps = NAN;
     in.has_velocity = 0;
     in.velocity_enu_mps[0] = in.velocity_enu_mps[1] = in.velocity_enu_mps[2] = 0.0;
-    in.imu_flags = 0; /* as the Python plug-in: the estimator sees the readings only */
+    in.imu_flags = m->feed_flags ? s->flags : 0; /* the sensor's flags, as ImuPlugin gives them */
     if (m->use_speed) {
         double v_w[3], v_b[3];
         int i;
@@ -249,9 +257,9 @@ int model_step(biso_instance *inst, double t, double h, char *msg, size_t len) {
         return BISO_ERROR;
     }
     norm = sqrt(truth[6] * truth[6] + truth[7] * truth[7] + truth[8] * truth[8] + truth[9] * truth[9]);
-    if (norm < 1e-6) {
-        snprintf(msg, len, "q_wb must be a non-zero quaternion, got (%g, %g, %g, %g)", truth[6], truth[7], truth[8],
-                 truth[9]);
+    if (fabs(norm - 1.0) > 1e-5) {
+        snprintf(msg, len, "q_wb must be a unit quaternion (|q| = 1 +- 1e-05), got (%g, %g, %g, %g), |q| = %.17g",
+                 truth[6], truth[7], truth[8], truth[9], norm);
         return BISO_ERROR;
     }
     memset(&ctx, 0, sizeof ctx);
@@ -260,6 +268,20 @@ int model_step(biso_instance *inst, double t, double h, char *msg, size_t len) {
     for (i = 0; i < 4; i++) ctx.q[i] = truth[6 + i] / norm;
     for (i = 0; i < 3; i++) ctx.vel[i] = truth[13 + i];
     for (i = 0; i < 6; i++) row[i] = truth[i];
+    if (m->lever) {
+        /* rigid body: the chip at r feels f + ω̇ × r + ω × (ω × r) (plugin/_kernels.prepare); ω̇
+         * is the slope of the rate the chip interpolates between steps (0 at the first) */
+        const double *w = truth, *rb = m->position_b;
+        double al[3], c[3], cc[3], t3[3];
+        for (i = 0; i < 3; i++) al[i] = m->have_prev ? (w[i] - m->prev_omega[i]) / h : 0.0;
+        c[0] = w[1] * rb[2] - w[2] * rb[1], c[1] = w[2] * rb[0] - w[0] * rb[2], c[2] = w[0] * rb[1] - w[1] * rb[0];
+        cc[0] = w[1] * c[2] - w[2] * c[1], cc[1] = w[2] * c[0] - w[0] * c[2], cc[2] = w[0] * c[1] - w[1] * c[0];
+        t3[0] = al[1] * rb[2] - al[2] * rb[1], t3[1] = al[2] * rb[0] - al[0] * rb[2];
+        t3[2] = al[0] * rb[1] - al[1] * rb[0];
+        for (i = 0; i < 3; i++) row[3 + i] = truth[3 + i] + cc[i] + t3[i];
+        /* the chip's position p + q ∘ r ∘ q* matters only for local disturbances, which the FMU
+         * does not carry: the Earth field is the same everywhere */
+    }
     biso_rotate_into_body(ctx.q, m->field_enu_ut, row + 6);
     row[9] = m->use_temperature ? truth[16] : m->sensor.temp_default;
     ctx.t_in = biso_mpu_time_s(&m->sensor, &m->sensor_state);
@@ -271,6 +293,7 @@ int model_step(biso_instance *inst, double t, double h, char *msg, size_t len) {
     biso_mpu_input_each(&m->sensor, &m->sensor_state, row, on_sample, &ctx);
     memcpy(m->prev_q, ctx.q, sizeof m->prev_q);
     memcpy(m->prev_vel, ctx.vel, sizeof m->prev_vel);
+    memcpy(m->prev_omega, truth, sizeof m->prev_omega);
 
     inst->core.integer[I_NEW_SAMPLES] = ctx.k;
     if (ctx.k == 0) return BISO_OK;

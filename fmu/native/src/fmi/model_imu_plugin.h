@@ -16,8 +16,10 @@ typedef struct {
     double step_size;           /* 0 until the first step fixes the truth rate */
     double output_rate_hz;
     int have_prev;
-    double prev_q[4], prev_vel[3];
-    int use_speed, use_temperature;
+    double prev_q[4], prev_vel[3], prev_omega[3];
+    int use_speed, use_temperature, feed_flags;
+    int lever;                  /* the chip is away from the point whose motion is given */
+    double position_b[3];
 } biso_model;
 
 #endif
