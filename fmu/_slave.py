@@ -241,7 +241,14 @@ class BisoSlave(Fmi2Slave):
 
     @_guard()
     def terminate(self):
-        pass
+        # after fmi2Terminate only fmi2Reset (which configures the model again) or
+        # fmi2FreeInstance may follow: the model's resources (MuJoCo) go now, while everything
+        # they need is alive, rather than with the slave when the cycle collector finds it
+        self.release_model()
+        self.configured = False
+
+    def release_model(self) -> None:
+        """Drop the model's resources (subclasses with a heavy model override)."""
 
     @_guard(False)
     def do_step(self, current_time: float, step_size: float) -> bool:

@@ -84,6 +84,10 @@ class VehicleSlave(BisoSlave):
         self.put_errors(estimate.q_wb[-1], truth.packed[-1, 7:11])
 
 
+    def release_model(self) -> None:
+        self.sim = None
+        self.est = None
+
     def model_state(self):
         return self.sim.get_state()
 
