@@ -210,3 +210,19 @@ def test_register_checks_follow_registers(lib):
     assert lib.register_check(0, 256) == "registers.smplrt_div must be one of 0..255, got 256"
     with pytest.raises(ValueError, match=r"input_rate_hz=300 must be an integer multiple or fraction of the gyro"):
         lib.sensor(input_rate_hz=300.0)
+
+
+def test_a_profile_file_built_in_gives_the_python_numbers(tmp_path):
+    """biso-cosim fmu build --profile FILE: the file's values become C data beside the
+    built-in profiles, and the C chip with it equals MPU9250 with that file."""
+    path = tmp_path / "my_part.toml"
+    path.write_text('name = "my_part"\nbase = "mpu9250"\n[gyro]\nnoise_density = 0.02\n'
+                    'bias_corner_times = [0.5, 500.0]\n[mag]\noffset = 3.0\n', "utf-8")
+    lib = SensorLibrary.build(tmp_path / "lib", extra_profiles=[path])
+    omega, force, mag = _motion(800, 1000.0)
+    model = MPU9250(path, seed=9)
+    py = model.simulate(omega, force, mag)
+    chip = lib.sensor(profile="my_part", seed=9)
+    _assert_same(py, chip.simulate(omega, force, mag, temp_default=model._kernel_state()[4]))
+    with pytest.raises(ValueError, match="is taken"):
+        SensorLibrary.build(tmp_path / "again", extra_profiles=[path, path])
