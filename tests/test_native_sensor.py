@@ -217,7 +217,8 @@ def test_a_profile_file_built_in_gives_the_python_numbers(tmp_path):
     built-in profiles, and the C chip with it equals MPU9250 with that file."""
     path = tmp_path / "my_part.toml"
     path.write_text('name = "my_part"\nbase = "mpu9250"\n[gyro]\nnoise_density = 0.02\n'
-                    'bias_corner_times = [0.5, 500.0]\n[mag]\noffset = 3.0\n', "utf-8")
+                    'bias_corner_times = [0.5, 5000.0]\n[accel]\nbias_corner_times = [1.0, 10.0]\n'
+                    '[mag]\noffset = 3.0\n', "utf-8")  # the gyro has more flicker terms
     lib = SensorLibrary.build(tmp_path / "lib", extra_profiles=[path])
     omega, force, mag = _motion(800, 1000.0)
     model = MPU9250(path, seed=9)

@@ -220,11 +220,12 @@ class MPU9250:
             taus, sig = flicker_terms(prof.axes(f"{sensor}.bias_instability"), prof.si(f"{sensor}.bias_corner_times"))
             if taus.size > K.N_GM:
                 raise ValueError(f"profile {sensor}.bias_corner_times spans too many decades (at most {(K.N_GM - 1) / 2:g})")
-            n_gm = taus.size
+            n = taus.size
+            n_gm = max(n_gm, n)  # one count for both channels: absent terms have sigma 0
             phi = np.exp(-slow_dt / taus)
-            p["gm_phi"][:n_gm] = phi
-            p["gm_sigma"][:n_gm] = sig
-            p["gm_drive"][:n_gm] = sig * np.sqrt(1.0 - phi**2)[:, None]
+            p["gm_phi"][:n] = phi
+            p["gm_sigma"][:n] = sig
+            p["gm_drive"][:n] = sig * np.sqrt(1.0 - phi**2)[:, None]
             p["rw_drive"] = prof.axes(f"{sensor}.random_walk") * math.sqrt(slow_dt)
             p["full_scale"] = reg.gyro_full_scale if sensor == "gyro" else reg.accel_full_scale
             p["lsb"] = reg.gyro_lsb_per_unit if sensor == "gyro" else reg.accel_lsb_per_unit

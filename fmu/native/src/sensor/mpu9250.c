@@ -250,7 +250,7 @@ int biso_mpu_setup(biso_mpu_params *p, const biso_mpu_config *cfg, char *msg, si
         ch->ap_d = row->allpass_d;
         ch->n_delay = row->delay_samples;
         ch->div = c == 0 ? gdiv : adiv;
-        p->n_gm = ip->n_gm; /* as the Python model: the last channel's count (see the report) */
+        if (ip->n_gm > p->n_gm) p->n_gm = ip->n_gm; /* both channels' terms: absent ones have sigma 0 */
     }
     return 0;
 }
