@@ -1,6 +1,6 @@
 """The co-simulation loop: vehicle → MPU-9250 → estimators, one control period at a time.
 
-DESIGN.md §3: the physics runs at ``physics_rate_hz`` (1 kHz) in chunks of one control
+docs/design.md §3: the physics runs at ``physics_rate_hz`` (1 kHz) in chunks of one control
 period; after each chunk the virtual MPU-9250 and every estimator are called once with the
 chunk's arrays (one jitted kernel call each, never a Python call per sample). The truth is
 taken at the IMU site (body axes = IMU site axes) and interpolated to the sensor's output
@@ -555,7 +555,7 @@ class CoSimulation:
         v = self.vehicle
         mujoco.mj_setState(v.model, v.data, state.physics, PHYSICS_STATE)
         # the driver reads the sensor data of the last step, which belongs to that step's start
-        # (DESIGN.md §3): restore it as it was rather than recompute it for the current state
+        # (docs/design.md §3): restore it as it was rather than recompute it for the current state
         v.data.sensordata[:] = state.sensordata
         v._restart_history()
         v.steps_done = state.steps_done

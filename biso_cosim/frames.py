@@ -233,7 +233,7 @@ def _q_from_gost_lambda(l0, l1, l2, l3):
 def _gost_angles_from_lambda(l0, l1, l2, l3):
     """(ψ, ϑ, γ) from λ, Aleshkin et al. (2024) eq. (4) with atan2.
 
-    The printed DCM has the wrong (2,2) entry (DESIGN.md §5); with C = λ's matrix from geographic
+    The printed DCM has the wrong (2,2) entry (docs/design.md §5); with C = λ's matrix from geographic
     to body, ϑ = asin(C12) and the printed quotients for γ and ψ hold with entry (2,2) =
     2λ0² + 2λ2² − 1 and the signs of (4).
     """

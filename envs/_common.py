@@ -102,7 +102,7 @@ def display_available() -> bool:
 
 RENDER_MODES: list[str] = ["rgb_array", *(["human"] if display_available() else [])]
 """Declared render modes: ``"human"`` only where a display exists, since Gymnasium's
-``check_env`` opens every declared mode (DESIGN.md §10)."""
+``check_env`` opens every declared mode (docs/design.md §10)."""
 
 
 def _int_seed(sequence: np.random.SeedSequence) -> int:

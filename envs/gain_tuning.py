@@ -24,7 +24,7 @@ __all__ = ["GainTuningEnv", "DEFAULT_TUNING", "CROSS_LINK_RATIO"]
 CROSS_LINK_RATIO = "cross_link_ratio"
 """The environment's own BISO parameter r = √3·k_p / k: with ``cutoff_hz`` it sets
 k = 2π f_c/√2 and k_p = r·2π f_c/√6 (r = 1: the paper's Butterworth design, damping 0.707;
-r = 0: no cross-links). DESIGN.md §5, reading D."""
+r = 0: no cross-links). docs/design.md §5, reading D."""
 
 DEFAULT_TUNING: dict[str, dict[str, tuple[float, float, str]]] = {
     "biso": {"cutoff_hz": (0.01, 20.0, "log"), CROSS_LINK_RATIO: (0.0, 2.0, "linear")},

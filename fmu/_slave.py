@@ -582,7 +582,7 @@ def slave_class(base: type[BisoSlave]):
     (a regular expression on the text in older releases; in 0.7 the class whose MRO holds
     ``Fmi2Slave`` deepest among the names the script defines), while the class itself lives
     in the package: a slave script stays free of numba caches and of module names shared
-    between FMUs (DESIGN.md §10).
+    between FMUs (docs/design.md §10).
     """
 
     def decorate(stub: type) -> type:

@@ -251,7 +251,7 @@ def test_paper_tuning_and_readings():
     poles = stability(BisoParams())["poles_at_rest"]
     np.testing.assert_allclose(np.sort(poles.imag), [-44.4098, -44.4098, 44.4098, 44.4098], atol=1e-3)
     np.testing.assert_allclose(poles.real, -44.4)
-    # reading L: the same gains give poles at half the frequency (the 5 Hz of DESIGN.md §5)
+    # reading L: the same gains give poles at half the frequency (the 5 Hz of docs/design.md §5)
     lit = stability(BisoParams(reading="L"))["poles_at_rest"]
     np.testing.assert_allclose(np.abs(lit), 0.5 * np.abs(poles))
     # pattern (13): −k ± i k_p and −k ± i√3 k_p

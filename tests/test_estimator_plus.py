@@ -112,7 +112,7 @@ def _mean_error_rotvec(q, q_true):
 
 
 def test_cross_link_bias_renormalised_versus_norm_term_versus_biso_plus():
-    """DESIGN.md §5: faithful BISO (k = √3 k_p) renormalised every step settles at a rotation
+    """docs/design.md §5: faithful BISO (k = √3 k_p) renormalised every step settles at a rotation
     of 2·(asin(1/(μ√2)) − 45°) about (1, 1, 1) when λ_k is noisy (μ: length of the mean λ_k;
     the formula is the fixed point of the averaged dynamics, met within 20 % at 1 kHz).
 

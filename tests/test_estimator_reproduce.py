@@ -34,7 +34,7 @@ def test_poles_response_and_convergence(report):
     assert p["damping_reading_D"] == pytest.approx(1 / math.sqrt(2), rel=2e-3)
     assert sorted(abs(b) for _, b in p["pattern13_readingD"]) == pytest.approx([25.64, 25.64, 44.41, 44.41], abs=0.01)
     fr_ = r["frequency_response"]
-    assert fr_["cross-linked (12)"]["pitch"]["minus3db_hz"] == pytest.approx(12.7, rel=0.02)  # DESIGN.md §5
+    assert fr_["cross-linked (12)"]["pitch"]["minus3db_hz"] == pytest.approx(12.7, rel=0.02)  # docs/design.md §5
     for c in fr_["discrete_check"]:
         assert c["simulated_abs"] == pytest.approx(c["analytic_abs"], rel=0.01)
         assert c["simulated_phase_deg"] == pytest.approx(c["analytic_phase_deg"], abs=1.0)

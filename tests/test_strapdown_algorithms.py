@@ -157,7 +157,7 @@ def anti(K):
 
 
 # --------------------------------------------------------------------------------------
-# The printed coefficients (with DESIGN.md §7 corrections) are what the derivation gives
+# The printed coefficients (with docs/design.md §7 corrections) are what the derivation gives
 # --------------------------------------------------------------------------------------
 
 

@@ -198,7 +198,7 @@ def _matmul(a, b):
 
 @jit
 def _error_model(sg, cg, tth, cth, wx, wy, wz):
-    """The coefficients (A1, A2, A3, B1, B2, B3, B4) of eq. (4) linearised (DESIGN.md §6):
+    """The coefficients (A1, A2, A3, B1, B2, B3, B4) of eq. (4) linearised (docs/design.md §6):
     Δϑ̇ = A1Δγ + A2Δω_y + A3Δω_z, Δγ̇ = B1Δϑ + B2Δγ + Δω_x + B3Δω_y + B4Δω_z, for the
     rate ω = (ω_x, ω_y, ω_z) in the paper's body axes (x forward, y up, z right)."""
     a1 = wy * cg - wz * sg

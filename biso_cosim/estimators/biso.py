@@ -3,7 +3,7 @@
 Aleshkin, Zdrazhevsky, Efremov, Skibin (2024), *Application of cross-linked positional
 correction in a strapdown orientation system*, Izv. vuzov. Priborostroenie 67(8), 678–688.
 
-The equation implemented (DESIGN.md §5, "reading D" of eqs. (2), (8), (9))::
+The equation implemented (docs/design.md §5, "reading D" of eqs. (2), (8), (9))::
 
     λ̇ = ½ λ∘ω − ½ ω_g∘λ + g_n λ(1 − |λ|²) + G (λ − λ_k)
 
@@ -46,7 +46,7 @@ State and output
 The state holds λ unnormalised (its norm is part of the dynamics through the norm term);
 the output is λ/|λ|. ``renormalize=True`` instead divides λ by its norm after every step
 (what many implementations do; with the cross-link it biases the estimate when λ_k is
-noisy, DESIGN.md §5).
+noisy, docs/design.md §5).
 
 Input policy (per sample, never an exception): a non-finite gyro sample (or |ω| > 1e4
 rad/s) is replaced by the last valid one (zero before any), flag GYRO_INVALID; a non-finite
@@ -144,7 +144,7 @@ class BisoParams:
         doc="tune by the Butterworth design frequency instead of k, k_p: ω_n = 2π f_c, "
             "poles −k ± i√3 k_p with k = ω_n/√2, k_p = ω_n/√6 (10 Hz gives the paper's gains); "
             "the −3 dB point of λ_k → λ is about 1.27 f_c",
-        source="text after eq. (12); DESIGN.md §5")
+        source="text after eq. (12); docs/design.md §5")
     pattern: int = param(
         12, symbol="", unit="",
         doc="sign pattern of the cross-links: 12 (eq. (9), poles −k ± i√3k_p, double) or 13 "
@@ -157,17 +157,17 @@ class BisoParams:
     renormalize: bool = param(
         False, symbol="", unit="",
         doc="divide λ by |λ| after every step instead of (in addition to) the norm term",
-        source="common practice; DESIGN.md §5 (bias with cross-links)")
+        source="common practice; docs/design.md §5 (bias with cross-links)")
     reading: str = param(
         "D", symbol="", unit="",
         doc="'D': the factor 2 of 2λ̇ on the kinematics only (matches the paper's tuning); "
             "'L': literal, 2λ̇ on the whole right side (all gains halved)",
-        source="DESIGN.md §5")
+        source="docs/design.md §5")
     reference: str = param(
         "vector", symbol="", unit="",
         doc="construction of λ_k: 'vector' (TRIAD, singularity-free, trig-free) or "
             "'euler' (corrected eqs. (5)–(7))",
-        source="eqs. (5)–(7); DESIGN.md §5")
+        source="eqs. (5)–(7); docs/design.md §5")
     declination_rad: float = param(
         0.0, symbol="D", unit="rad",
         doc="magnetic declination, east positive: true heading = magnetic heading + D",

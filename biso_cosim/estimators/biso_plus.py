@@ -2,7 +2,7 @@
 
 Same family as the faithful BISO (``biso.py``): the quaternion Poisson equation integrated
 from the gyro, with a positional correction toward the attitude the accelerometer and the
-magnetometer give. What it adds, each for a weakness DESIGN.md §5 and issue 4 name:
+magnetometer give. What it adds, each for a weakness docs/design.md §5 and issue 4 name:
 
 * **gyro-bias estimation**: a three-state Kalman filter (after VQF, Laidig & Seel 2023,
   §"bias estimation") whose measurement is the correction rate the positional correction
@@ -33,7 +33,7 @@ magnetometer give. What it adds, each for a weakness DESIGN.md §5 and issue 4 n
 * **a cross-link without the renormalisation bias**: the paper's cross-link acts on the
   rotation-vector error ε (world frame), ``ω_c = K ε + k_p (1, 1, 1) × ε``, applied as a
   rotation: the estimate stays a unit quaternion, there are no norm dynamics, and the bias
-  of ``λ − λ_k`` with renormalisation (DESIGN.md §5) is gone. A cross-link on rotations still
+  of ``λ − λ_k`` with renormalisation (docs/design.md §5) is gone. A cross-link on rotations still
   leaves a second-order "coning" drift when the reference is very noisy (the noisy error
   spirals about (1, 1, 1)); measured, it is well below the renormalisation bias, and with
   the default k_p = 0 (chosen by measurement: the cross-link never improved accuracy) there

@@ -2,7 +2,7 @@
 
 M. A. Ibrahim, V. V. Lukyanov, *Algorithms and configuration of an attitude system on MEMS
 sensors*, Herald of the Bauman MSTU, Ser. Instrument Engineering, 2020, no. 2, pp. 44–58
-(seed 002; DESIGN.md §6 for the reconstruction of the OCR).
+(seed 002; docs/design.md §6 for the reconstruction of the OCR).
 
 The tilt (pitch ϑ, roll γ) of a gyro-integrated attitude is corrected with the difference
 between the acceleration the GNSS velocity shows and the accelerometer's specific force
@@ -37,11 +37,11 @@ Kinematics (4) is the Euler-angle form of q̇ = ½ q∘ω. The attitude is carri
 quaternion, integrated exactly for the gyro rate held over each sample interval (no
 singularity at ϑ = ±90°, and a perfect gyro keeps a perfect attitude at any rate); the
 Euler angles are used where the paper's equations need them: the linearised error model
-(the A and B coefficients of DESIGN.md §6) and the tilt corrections, which change ϑ and γ
+(the A and B coefficients of docs/design.md §6) and the tilt corrections, which change ϑ and γ
 and keep ψ. Vehicles stay far from ϑ = ±90°; beyond ``max_pitch_rad`` no tilt correction
 is made (updates of kind ``rejected_geometry``) and the error model is evaluated at the limit.
 
-The open points of DESIGN.md §6, decided
+The open points of docs/design.md §6, decided
 ----------------------------------------
 1. **Heading sign.** The printed field vector T_y = (H cos ψ_m, −Z, −H sin ψ_m) in
    (forward, up, right) axes only holds for ψ_m measured clockwise, whereas the paper's
@@ -67,7 +67,7 @@ The open points of DESIGN.md §6, decided
 4. **Drift model.** Each drift is a first-order Gauss–Markov process, Δω̇ = −Δω/τ_d + w,
    stationary σ_d (rows −1/T of the paper's F); between updates the estimated drift decays as
    e^{−t/τ_d}. The drift about the body's Up axis enters the tilt only through sin γ, cos ϑ
-   terms: unobservable at level (rank 4 of 5, DESIGN.md §6); it keeps its prior.
+   terms: unobservable at level (rank 4 of 5, docs/design.md §6); it keeps its prior.
 5. **N.** N = ∂(Ĉ_gb f_b)/∂(ϑ, γ) = [a × f_g, x_b × f_g], a the horizontal axis to the right
    of the heading (the pitch axis), x_b the body's forward axis: z ≈ −N ΔΓ − N_0 Δψ + noise
    with N_0 = e_Up × f_g. ``heading_coupling="none"`` (default) leaves the heading error out
@@ -225,7 +225,7 @@ class _GnssAidedParams:
         source="eq. (5)")
     gravity_mps2: float = param(
         G0, symbol="g", unit="m/s²", doc="gravity added to the GNSS acceleration (Up)",
-        source="DESIGN.md §6; the simulated world's gravity")
+        source="docs/design.md §6; the simulated world's gravity")
     window_s: float = param(
         1.0, symbol="T_w", unit="s",
         doc="shortest time between the two fixes whose velocity difference forms A_GNSS (and the window of "
@@ -246,7 +246,7 @@ class _GnssAidedParams:
     heading_coupling: str = param(
         "none", symbol="", unit="",
         doc="N without ('none': heading error variance added to R) or with ('magnetic': N + N0·[P1 P2]) the "
-            "magnetic heading's dependence on tilt errors", source="DESIGN.md §6; measured")
+            "magnetic heading's dependence on tilt errors", source="docs/design.md §6; measured")
     max_pitch_rad: float = param(
         80.0 * DEG, symbol="ϑ_max", unit="rad",
         doc="no tilt correction beyond this |pitch| (the Euler-angle error model is singular at 90°)",
@@ -566,7 +566,7 @@ def euler_rates(theta: float, gamma: float, omega: Any) -> np.ndarray:
 
 
 def error_matrix(theta: float, gamma: float, omega: Any, drift_tau_s: float) -> np.ndarray:
-    """F of Ẋ = F X + G w, X = [Δϑ, Δγ, Δω_x, Δω_y, Δω_z] (eq. (4) linearised, DESIGN.md §6)."""
+    """F of Ẋ = F X + G w, X = [Δϑ, Δγ, Δω_x, Δω_y, Δω_z] (eq. (4) linearised, docs/design.md §6)."""
     wx, wy, wz = np.asarray(omega, dtype=np.float64)
     sg, cg, tt, ct = math.sin(gamma), math.cos(gamma), math.tan(theta), math.cos(theta)
     a1 = wy * cg - wz * sg

@@ -6,7 +6,7 @@ constructions are offered; they give the same quaternion (to rounding) wherever 
 defined:
 
 ``"euler"``
-    the paper's route, with the corrections of DESIGN.md §5: in the paper's body axes
+    the paper's route, with the corrections of docs/design.md §5: in the paper's body axes
     (x forward, y up, z right) ``ϑ = atan2(f_x, √(f_y² + f_z²))``, ``γ = atan2(−f_z, f_y)``,
     ``ψ = atan2(H_y sinγ + H_z cosγ, H_x cosϑ − (H_y cosγ − H_z sinγ) sinϑ) − D``, then
     eq. (7). The printed (5) (arcsin, needs the horizontal field L) and (6) (sign of γ) are
@@ -16,7 +16,7 @@ defined:
     north = up × east are the rows of the body→world matrix, turned into a quaternion by
     Shepperd's method (run on the unnormalised rows: ``_kernels._q_from_up_east``), then
     rotated by the declination about Up. Defined for every attitude; several times cheaper
-    (DESIGN.md §9).
+    (docs/design.md §9).
 
 Both map the magnetic heading to true heading with the declination D (east positive).
 When the magnetometer sample is unusable (non-finite, zero, or parallel to f) the heading

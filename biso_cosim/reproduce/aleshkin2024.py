@@ -237,7 +237,7 @@ def _static_pitch_noise(fs: float, duration_s: float, seed: int) -> dict[str, fl
 
 
 def _printed_polynomial(k: float, kp: float, w: np.ndarray, corrected: bool = False) -> np.ndarray:
-    """Eq. (11) as printed (w = Σω⁴), or with the erratum w = Σω² (DESIGN.md §5)."""
+    """Eq. (11) as printed (w = Σω⁴), or with the erratum w = Σω² (docs/design.md §5)."""
     wx, wy, wz = w
     ww = (wx ** 2 + wy ** 2 + wz ** 2) if corrected else (wx ** 4 + wy ** 4 + wz ** 4)
     return np.array([1.0, 4 * k, 6 * (k * k + kp * kp) + 2 * ww, 4 * k * ((k * k + 3 * kp * kp) + ww),
@@ -335,7 +335,7 @@ def _report(r: dict[str, Any]) -> str:
     p = r["poles"]
     lines = ["# Aleshkin et al. (2024): reproduction", "",
              "BISO: quaternion Poisson equation with cross-linked positional correction, implemented as "
-             "DESIGN.md §5 reading D (`biso_cosim.estimators.biso`). Numbers from `results.json`.", "",
+             "docs/design.md §5 reading D (`biso_cosim.estimators.biso`). Numbers from `results.json`.", "",
              "## 1. Poles for the paper's gains (k = 44.4, k_p = 25.64)", "",
              "| pattern, reading | poles (re, im) |", "|---|---|"]
     for key in ("pattern12_readingD", "pattern13_readingD", "pattern12_readingL", "pattern13_readingL"):
@@ -386,7 +386,7 @@ def _report(r: dict[str, Any]) -> str:
     pol = rt["polynomial_at_w"]
     lines += ["", f"With equal gains the poles are −k ± i(√3k_p ± |ω|/2) (reading D): the real part is −k at every "
               "rate, so there is no ±4–5 rad/s limit; the paper's limit comes from typos in (10), (11) and Δ2 "
-              f"(DESIGN.md §5). Characteristic polynomial of (10) at ω = {pol['w']}: actual "
+              f"(docs/design.md §5). Characteristic polynomial of (10) at ω = {pol['w']}: actual "
               f"{[round(x, 1) for x in pol['actual']]}; (11) as printed {[round(x, 1) for x in pol['printed_11']]}; "
               f"(11) with w = Σω² {[round(x, 1) for x in pol['corrected_11']]}.", "",
               "Convergence from a 30° error while rotating at 10 rad/s (perfect sensors):", "",

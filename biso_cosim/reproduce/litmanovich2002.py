@@ -475,7 +475,7 @@ def _report(res: dict, figures: list[str]) -> str:
         ("quantity", lambda a: a.quantity), ("name", lambda a: f"`{a.name}`"), ("eq.", lambda a: a.equation),
         ("input", lambda a: a.input_description), ("leading error (test motion)", lambda a: a.error or ""),
         ("our correction", lambda a: a.correction)])
-    L += ["", "Also corrected (DESIGN.md §7, re-derived in exact rational arithmetic in "
+    L += ["", "Also corrected (docs/design.md §7, re-derived in exact rational arithmetic in "
           "`tests/test_strapdown_algorithms.py`): (4.3) needs a factor ½ on the whole series; (5.2) reads "
           "S(k+1) = S(k) + V(k)·T + δS, with V, not V̇. Signs: the paper prints magnitudes; ours are "
           "(computed − exact) along the exact correction, so negative = under-compensation. With that "

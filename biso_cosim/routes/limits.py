@@ -8,7 +8,7 @@ in, named in ``sources``.
 
 Friction limits use the fraction of the tyres' friction coefficient μ that the scripted
 driver may ask for, ``USABLE_FRICTION``: the sphere tyres steer kinematically up to 0.65 g
-and slide suddenly at 0.76 g with μ = 1 (DESIGN.md §11), so a route that asks for more
+and slide suddenly at 0.76 g with μ = 1 (docs/design.md §11), so a route that asks for more
 leaves the road. The same fraction bounds traction, braking and the climbable grade.
 """
 
@@ -24,7 +24,7 @@ __all__ = ["CarLimits", "car_limits", "USABLE_FRICTION", "CLASS_TOP_SPEED_MPS", 
 STANDARD_GRAVITY_MPS2 = 9.80665
 
 USABLE_FRICTION = 0.65
-"""Fraction of μ a route may use (sphere tyres: kinematic to 0.65 g, slide at 0.76 g; DESIGN.md §11)."""
+"""Fraction of μ a route may use (sphere tyres: kinematic to 0.65 g, slide at 0.76 g; docs/design.md §11)."""
 
 CLASS_TOP_SPEED_MPS = 204.0 / 3.6
 """Top speed of an 85 kW compact hatchback: VW Golf VII 1.0 TSI (85 kW, 200 N m), 204 km/h by the
@@ -82,7 +82,7 @@ def car_limits() -> CarLimits:
     brakes = 4.0 * p["max_brake_torque_per_wheel_nm"] / p["wheel_radius_m"] / m
     # climbing from rest on a grade θ: μ·(cos θ·b/L + sin θ·h/L) = sin θ
     grade = mu * rear_share / (1.0 - mu * h / wheelbase)
-    friction = f"tyre friction μ = {mu / USABLE_FRICTION:g} (car.xml) × {USABLE_FRICTION} usable (DESIGN.md §11)"
+    friction = f"tyre friction μ = {mu / USABLE_FRICTION:g} (car.xml) × {USABLE_FRICTION} usable (docs/design.md §11)"
     sources = {
         "top_speed_mps": "class figure: VW Golf VII 1.0 TSI, 85 kW, 204 km/h (the model has no engine yet)",
         "accel_mps2": (f"rear-axle traction, {friction}, {rear_share:.0%} static load, load transfer "

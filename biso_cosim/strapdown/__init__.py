@@ -15,7 +15,7 @@ arrays are (N, m, 3): N intervals, m rows (sub-intervals, or orders r = 1..m), b
 The formulas are frame-free vector formulas; the navigator uses the package conventions
 (world ENU, ``q_wb`` Hamilton scalar-first, body x forward y left z up).
 
-Printed formulas that are wrong and what we use instead are in DESIGN.md §7 and in each
+Printed formulas that are wrong and what we use instead are in docs/design.md §7 and in each
 kernel's comment; ``list_algorithms()`` lists names, equations and input forms.
 
 Public API:

@@ -10,7 +10,7 @@ equal length T/m; for the smoothing and invariant algorithms row r−1 holds the
 iterated integral ΔΘ^r over T (ΔΘ^1 = ΔΘ, units rad·s^(r−1)); the same for ΔV.
 One-sample algorithms read row 0 only, which is ΔΘ in either form.
 
-Every formula below is the paper's, with the corrections of DESIGN.md §7 (re-derived in
+Every formula below is the paper's, with the corrections of docs/design.md §7 (re-derived in
 exact rational arithmetic in ``tests/test_strapdown_algorithms.py``).
 """
 

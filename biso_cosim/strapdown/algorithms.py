@@ -4,7 +4,7 @@ The registry below is the single description of every algorithm (name, equation,
 form, rows needed, error on the test motion); :func:`list_algorithms` returns it, and the
 docs table, the CLI help and the reproduction report are drawn from it.
 
-Input forms (DESIGN.md §7 notation):
+Input forms (docs/design.md §7 notation):
 
 * ``"sub"``: the m sub-interval increments ΔΘ_1..ΔΘ_m (ΔV_1..ΔV_m) of equal length T/m,
   ordinary gyro/accelerometer outputs; the array must have exactly the m the algorithm
@@ -15,7 +15,7 @@ Input forms (DESIGN.md §7 notation):
 
 Error formulas are for the paper's test motions: coning of half-angle α at ω_c (drift ε
 along the cone axis) and sculling of amplitudes θ₀, a₀ at ω₀ (mean acceleration error ΔW),
-leading term in ω·T, as corrected in DESIGN.md §7 and re-derived in the tests. The paper
+leading term in ω·T, as corrected in docs/design.md §7 and re-derived in the tests. The paper
 prints magnitudes; our sign is that of (computed − exact) along the exact correction, so a
 negative error means the algorithm under-compensates coning or sculling.
 """

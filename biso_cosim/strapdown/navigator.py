@@ -6,7 +6,7 @@ Per update interval T, from the state at t_k (attitude q_wb(k), velocity V(k), p
 * velocity: ``V(k+1) = V(k) + C(k)[ΔV + δV_s] + g T`` (1.3), (1.6);
 * position: ``S(k+1) = S(k) + V(k) T`` (rectangle, 5.1), ``+ ½(V(k) + V(k+1)) T``
   (trapezoid), or the exact form ``S(k) + V(k) T + C(k)[ΔV² + δS_s] + g T²/2`` (5.2)
-  with δS_s (5.4) (printed with V̇(k) for V(k), DESIGN.md §7).
+  with δS_s (5.4) (printed with V̇(k) for V(k), docs/design.md §7).
 
 Frames: world w is ENU and treated as inertial (flat, non-rotating Earth: right for the
 MuJoCo world; the Earth rate, 15 °/h, is below the MPU-9250's gyro noise); b is the frame

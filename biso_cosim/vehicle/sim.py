@@ -2,7 +2,7 @@
 
 ``VehicleSim.step(n)`` advances the physics by n steps and returns the truth of those steps
 as a :class:`Truth` record at the physics rate. MuJoCo's sensor values read after
-``mj_step`` belong to the state at the start of that step (DESIGN.md §3), so the k-th row of
+``mj_step`` belong to the state at the start of that step (docs/design.md §3), so the k-th row of
 a chunk is the truth at ``t0 + k·dt``, where ``t0`` was the simulation time before the call.
 """
 

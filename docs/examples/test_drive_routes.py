@@ -66,6 +66,6 @@ def test_my_filter_heading_in_the_figure_eight():
 @pytest.mark.biso_route("slalom", estimator="biso", seed=1)
 def test_biso_in_the_slalom(route_run):
     route_run.assert_completed(max_cross_track_m=1.0)
-    # the faithful BISO follows the accelerometer (DC gain 1, DESIGN.md §5): at 0.35 g of
+    # the faithful BISO follows the accelerometer (DC gain 1, docs/design.md §5): at 0.35 g of
     # lateral acceleration it leans by up to ~15°; a test documents such a property too
     route_run.assert_max_error(roll=16.0)

@@ -1,6 +1,6 @@
 /* BISO (biso, positional, poisson): the quaternion Poisson equation with cross-linked
  * positional correction, Aleshkin, Zdrazhevsky, Efremov, Skibin (2024), Izv. vuzov.
- * Priborostroenie 67(8), 678-688, "reading D" of eqs. (2), (8), (9) (DESIGN.md §5).
+ * Priborostroenie 67(8), 678-688, "reading D" of eqs. (2), (8), (9) (docs/design.md §5).
  *
  * Port of biso_cosim/estimators/biso.py: biso_coefficients (validation and the
  * coefficient array) and one sample of _biso_batch (its two passes over a block do the
