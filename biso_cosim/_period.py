@@ -12,7 +12,7 @@ from biso_cosim.estimators.biso import _biso_batch
 from biso_cosim.estimators.biso_plus import _biso_plus_batch
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
-from biso_cosim.vehicle._kernels import HISTORY_READ, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
+from biso_cosim.vehicle._kernels import HISTORY_READ, TRUTH_LAYOUT, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
 __all__ = ["_sense_period", "_sense_estimate_period", "_sensor_inputs", "_period_samples"]
 
@@ -25,20 +25,21 @@ _ARG_STATUS_BYTES, _ARG_SAMPLE_FLAGS = _ARG_OUT + 2, _ARG_OUT + 3  # (numba inde
 
 
 @jit
-def _sensor_inputs(packed, field_w, omega_b, force_b, mag_b):
-    """From truth rows packed as ``Truth`` packs them: the body rate and the specific force
-    as contiguous (n, 3) rows, and the world field ``field_w`` (µT, ENU, the same everywhere)
-    rotated into each row's attitude (``MagneticEnvironment.field_b``'s kernel). Returns
-    whether every position is finite (``field_b`` refuses positions that are not)."""
+def _sensor_inputs(packed, field_enu_ut, omega_b, force_b, mag_b):
+    """From truth rows packed as ``Truth`` packs them (``TRUTH_LAYOUT``): the body rate and
+    the specific force as contiguous (n, 3) rows, and the Earth's field ``field_enu_ut`` (µT,
+    ENU, the same everywhere) rotated into each row's attitude (``MagneticEnvironment.field_b``'s
+    kernel). Returns whether every position is finite (``field_b`` refuses positions that are not)."""
+    w, f, q, p = TRUTH_LAYOUT.omega_b, TRUTH_LAYOUT.specific_force_b, TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.pos_w
     for k in range(packed.shape[0]):
         for a in range(3):
-            omega_b[k, a] = packed[k, 1 + a]
-            force_b[k, a] = packed[k, 4 + a]
-    return _rotate_into_body(packed[:, 7:11], packed[:, 11:14], field_w, mag_b)
+            omega_b[k, a] = packed[k, w + a]
+            force_b[k, a] = packed[k, f + a]
+    return _rotate_into_body(packed[:, q:q + 4], packed[:, p:p + 3], field_enu_ut, mag_b)
 
 
 @jit
-def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_w, before,
+def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_enu_ut, before,
                   cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats, words, status_bytes,
                   flags, at, wheel_radius_m, odometry, flags64):
     """A control period's sensing in one call, the steps ``CoSimulation._sense`` takes one
@@ -65,7 +66,7 @@ def _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, 
     _pack_rows(rows, gather, first_step, rate_hz, packed)
     n = packed.shape[0]
     inputs = np.empty((3, n, 3))
-    if not _sensor_inputs(packed, field_w, inputs[0], inputs[1], inputs[2]):
+    if not _sensor_inputs(packed, field_enu_ut, inputs[0], inputs[1], inputs[2]):
         return -3, 0
     status, k = _simulate(cp, ch, cs, chs, inputs[0], inputs[1], inputs[2], np.empty(0), temp_default, order, nsub,
                           floats, words, status_bytes, flags)
@@ -96,7 +97,7 @@ def _sample_rows(floats, bound, k):
 
 
 @jit
-def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_w,
+def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz, field_enu_ut,
                            before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col, packed, floats,
                            words, status_bytes, flags, at, wheel_radius_m, odometry, flags64, no_velocity, scratch,
                            coef_a, state_a, q_a, flags_a, coef_b, state_b, q_b, flags_b,
@@ -110,7 +111,7 @@ def _sense_estimate_period(history, layout, t_start, warnings, sensordata, rows,
     ``speed_mps`` (``_biso_plus_batch``). They run only when the sensing succeeded (status
     -1), so a period that is refused or stepped again has changed none of them."""
     status, k = _sense_period(history, layout, t_start, warnings, sensordata, rows, gather, first_step, rate_hz,
-                              field_w, before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col,
+                              field_enu_ut, before, cp, ch, cs, chs, temp_default, order, nsub, t_shift_s, quat_col,
                               packed, floats, words, status_bytes, flags, at, wheel_radius_m, odometry, flags64)
     if status != -1:
         return status, k

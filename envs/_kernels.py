@@ -13,14 +13,13 @@ from biso_cosim._period import _period_samples, _sense_estimate_period
 from biso_cosim.estimators.biso import _cutoff_gains, _write_equal_gains
 from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
-from biso_cosim.vehicle._kernels import S_CROSS, S_S, _apply_controls
-from biso_cosim.vehicle.sim import Truth
+from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls
 
 __all__ = ["_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
            "_tuning_period", "_driving_period", "_attitude_step", "_tuning_step", "_driving_step"]
 
-_Q0, _Q1 = Truth.QUAT_COLUMN, Truth.QUAT_COLUMN + 4  # a packed truth row's q_wb
+_Q0, _Q1 = TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.q_wb + 4  # a packed truth row's q_wb
 
 
 @jit
@@ -160,11 +159,12 @@ def _dead_reckon(q, wheel_rates, speed_scale, dt, pose):
 @jit
 def _navigate_period(q, packed, sensordata, steer_index, half_radius_m, dt, pose, q_est):
     """Driving-v0's navigation over one period's k samples (k > 0): ``_dead_reckon`` with the
-    rear axle's speed half_radius·cos(steering)·(fl + fr wheel rate) (wheel rates in the
-    packed truth's columns 18, 19; steering read from MuJoCo's sensordata), and the newest
-    estimate copied into q_est."""
+    rear axle's speed half_radius·cos(steering)·(fl + fr wheel rate) (the packed truth's
+    wheel rates; steering read from MuJoCo's sensordata), and the newest estimate copied
+    into q_est."""
     speed_scale = half_radius_m * math.cos(sensordata[steer_index])
-    _dead_reckon(q, packed[:, 18:22], speed_scale, dt, pose)
+    wheels = TRUTH_LAYOUT.wheel_rates
+    _dead_reckon(q, packed[:, wheels:wheels + 4], speed_scale, dt, pose)
     for j in range(4):
         q_est[j] = q[q.shape[0] - 1, j]
 

@@ -15,12 +15,14 @@ a master can go back in time and repeat a step with other inputs bit for bit.
 from __future__ import annotations
 
 from biso_cosim.fmu._slave import BisoSlave, FmuConfigError
+from biso_cosim.vehicle._kernels import truth_columns
 
 __all__ = ["VehicleSlave"]
 
 # output key head → columns of biso_cosim.vehicle.sim.Truth.packed
-_TRUTH_COLUMNS = (("truth_omega", 1, 4), ("truth_force", 4, 7), ("truth_q", 7, 11), ("truth_pos", 11, 14),
-                  ("truth_vel", 14, 17), ("truth_speed", 17, 18))
+_TRUTH_COLUMNS = tuple((head, truth_columns(name)) for head, name in (
+    ("truth_omega", "omega_b"), ("truth_force", "specific_force_b"), ("truth_q", "q_wb"), ("truth_pos", "pos_w"),
+    ("truth_vel", "vel_w"), ("truth_speed", "speed_mps")))
 
 
 class VehicleSlave(BisoSlave):
@@ -76,12 +78,12 @@ class VehicleSlave(BisoSlave):
             return
         samples, truth, estimate = latest
         self.put_readings(samples, self.start_time, count)
-        row = truth.packed[-1].tolist()  # Truth columns: t, ω_b, f_b, q_wb, p_w, v_w, speed, wheels
-        for head, first, last in _TRUTH_COLUMNS:
-            self.put(head, row[first:last])
+        row = truth.packed[-1]
+        for head, columns in _TRUTH_COLUMNS:
+            self.put(head, row[columns].tolist() if isinstance(columns, slice) else [float(row[columns])])
         self.put_estimate(estimate.q_wb[-1], estimate.flags[-1],
                           None if estimate.gyro_bias_b is None else estimate.gyro_bias_b[-1])
-        self.put_errors(estimate.q_wb[-1], truth.packed[-1, 7:11])
+        self.put_errors(estimate.q_wb[-1], truth.q_wb[-1])
 
 
     def release_model(self) -> None:

@@ -3,11 +3,53 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
+
+
+class TruthLayout(NamedTuple):
+    """Where each quantity sits in a packed truth row (``sim.Truth``): the first column of
+    each, its width in ``TRUTH_WIDTHS``. Kernels index rows by these names (numba freezes a
+    global named tuple of ints into constants), never by bare numbers."""
+
+    t_s: int  # time, s
+    omega_b: int  # angular rate, body axes, rad/s (3)
+    specific_force_b: int  # specific force, body axes, m/s² (3)
+    q_wb: int  # attitude, body to ENU, scalar first (4)
+    pos_w: int  # IMU site position, ENU, m (3)
+    vel_w: int  # IMU site velocity, ENU, m/s (3)
+    speed_mps: int  # forward speed of the rear axle, m/s
+    wheel_rates: int  # wheel spin rates fl, fr, rl, rr, rad/s (4)
+    steer_rad: int  # bicycle steering angle, rad, left positive
+    width: int  # columns in a row
+
+
+TRUTH_WIDTHS = {"t_s": 1, "omega_b": 3, "specific_force_b": 3, "q_wb": 4, "pos_w": 3, "vel_w": 3, "speed_mps": 1,
+                "wheel_rates": 4, "steer_rad": 1}
+"""Columns each quantity of ``TruthLayout`` spans, in row order."""
+
+
+def _layout() -> TruthLayout:
+    starts, column = [], 0
+    for width in TRUTH_WIDTHS.values():
+        starts.append(column)
+        column += width
+    return TruthLayout(*starts, column)
+
+
+TRUTH_LAYOUT = _layout()
+"""The packed truth row: t_s 0, omega_b 1:4, specific_force_b 4:7, q_wb 7:11, pos_w 11:14,
+vel_w 14:17, speed_mps 17, wheel_rates 18:22, steer_rad 22; width 23."""
+
+
+def truth_columns(name: str) -> int | slice:
+    """The column (width 1) or column slice of quantity ``name`` in a packed truth row."""
+    start, width = getattr(TRUTH_LAYOUT, name), TRUTH_WIDTHS[name]
+    return start if width == 1 else slice(start, start + width)
 
 
 @jit(inline="always")
@@ -124,9 +166,10 @@ def _history_rows(history, layout, n, t_start, warnings, sensordata, rows):
 @jit
 def _wheel_odometry(packed, wheel_radius_m, out):
     """Rear-axle speed (m/s) of each packed truth row from the undriven front wheels into
-    out: ½(fl + fr spin rate)·radius·cos(steering) (columns 18, 19 and 22)."""
+    out: ½(fl + fr spin rate)·radius·cos(steering)."""
+    fl, fr, steer = TRUTH_LAYOUT.wheel_rates, TRUTH_LAYOUT.wheel_rates + 1, TRUTH_LAYOUT.steer_rad
     for i in range(packed.shape[0]):
-        out[i] = 0.5 * (packed[i, 18] + packed[i, 19]) * wheel_radius_m * math.cos(packed[i, 22])
+        out[i] = 0.5 * (packed[i, fl] + packed[i, fr]) * wheel_radius_m * math.cos(packed[i, steer])
 
 
 @jit

@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 
 from biso_cosim.frames import _q_from_euler
-from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, _apply_controls, _drive_period,
-                                         _history_rows, _interpolate_rows, _pack_rows, _track_axle)
+from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, TRUTH_LAYOUT, _apply_controls, _drive_period,
+                                         _history_rows, _interpolate_rows, _pack_rows, _track_axle, truth_columns)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
@@ -49,18 +49,19 @@ class Truth:
     """
 
     __slots__ = ("packed",)
-    WIDTH = 23
-    QUAT_COLUMN = 7
+    LAYOUT = TRUTH_LAYOUT  # where each quantity sits in a row
+    WIDTH = TRUTH_LAYOUT.width
+    QUAT_COLUMN = TRUTH_LAYOUT.q_wb
 
-    t_s = _columns(0, "time, s")
-    omega_b = _columns(slice(1, 4), "angular rate in body axes, rad/s")
-    specific_force_b = _columns(slice(4, 7), "specific force in body axes, m/s²")
-    q_wb = _columns(slice(7, 11), "attitude, body to ENU")
-    pos_w = _columns(slice(11, 14), "IMU site position, ENU, m")
-    vel_w = _columns(slice(14, 17), "IMU site velocity, ENU, m/s")
-    speed_mps = _columns(17, "forward speed of the rear axle, m/s")
-    wheel_rates = _columns(slice(18, 22), "wheel spin rates fl, fr, rl, rr, rad/s")
-    steer_rad = _columns(22, "bicycle steering angle (the steering column), rad, left positive")
+    t_s = _columns(truth_columns("t_s"), "time, s")
+    omega_b = _columns(truth_columns("omega_b"), "angular rate in body axes, rad/s")
+    specific_force_b = _columns(truth_columns("specific_force_b"), "specific force in body axes, m/s²")
+    q_wb = _columns(truth_columns("q_wb"), "attitude, body to ENU")
+    pos_w = _columns(truth_columns("pos_w"), "IMU site position, ENU, m")
+    vel_w = _columns(truth_columns("vel_w"), "IMU site velocity, ENU, m/s")
+    speed_mps = _columns(truth_columns("speed_mps"), "forward speed of the rear axle, m/s")
+    wheel_rates = _columns(truth_columns("wheel_rates"), "wheel spin rates fl, fr, rl, rr, rad/s")
+    steer_rad = _columns(truth_columns("steer_rad"), "bicycle steering angle (the steering column), rad, left positive")
 
     def __init__(self, packed: np.ndarray):
         if packed.ndim != 2 or packed.shape[1] != self.WIDTH:
