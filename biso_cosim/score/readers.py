@@ -8,14 +8,16 @@ Formats (found by ``find_recordings`` in a folder):
                 optical dropouts), ``movement`` (N,) scored samples, ``sampling_rate`` (Hz);
                 ``opt_pos`` is not needed. Needs ``h5py`` (extra ``score``).
 ``npz``         the same keys in a NumPy ``.npz`` (the BROAD subset of ``shared/data/broad_dev``);
-                ``sampling_rate`` may be left out for files named like BROAD's trials
-                (``NN_undisturbed_…``, ``NN_disturbed_…``: all of BROAD is sampled at 2000/7 Hz),
-                otherwise give it (``fs_hz``, ``--fs``); ``movement`` may be left out (all scored).
+                without ``sampling_rate`` the rate is ``fs_hz`` (``--fs``), or for files named like
+                BROAD's trials (``NN_undisturbed_…``, ``NN_disturbed_…``) BROAD's 2000/7 Hz;
+                ``movement`` may be left out (all scored).
 ``run-log``     a ``log.csv`` of ``biso-cosim run`` (with its ``summary.json``), or any CSV with the
                 sensor columns of :mod:`biso_cosim.logs` and the reference ``true_qw`` … ``true_qz``:
                 the truth is the reference, every sample is scored unless a ``movement`` column
                 (0/1) says otherwise, the sample rate comes from ``t_s`` (or ``summary.json``),
                 the declination from the ``declination_deg`` column.
+
+A rate the recording carries is never overridden by ``fs_hz``.
 
 Every recording is in its sensor's own axes (BROAD: the IMU's; a run log: the vehicle body's
 x forward, y left, z up) and its reference maps them to ENU.
@@ -31,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Recording", "find_recordings", "read_recording", "read_broad_hdf5", "read_npz", "read_run_log",
-           "broad_groups", "BROAD_RATE_HZ", "RECORDING_SUFFIXES"]
+__all__ = ["Recording", "find_recordings", "read_folder", "read_recording", "read_broad_hdf5", "read_npz",
+           "read_run_log", "is_run_log", "broad_groups", "BROAD_RATE_HZ", "RECORDING_SUFFIXES"]
 
 BROAD_RATE_HZ = 2000.0 / 7.0
 """Sample rate of every BROAD trial (Laidig et al. 2021, §2)."""
@@ -109,10 +111,10 @@ def _movement(path: Path, value, n: int) -> np.ndarray:
 
 
 def _rate(path: Path, value, fs_hz: float | None) -> float:
-    if fs_hz is not None:
-        rate = float(fs_hz)
-    elif value is not None:
+    if value is not None:
         rate = float(np.asarray(value).reshape(-1)[0])
+    elif fs_hz is not None:
+        rate = float(fs_hz)
     elif _BROAD_NAME.match(path.stem):
         rate = BROAD_RATE_HZ
     else:
@@ -214,9 +216,9 @@ def read_run_log(path: str | Path, fs_hz: float | None = None, groups: tuple[str
     if table.shape[0] == 0:
         raise ValueError(f"{path}: no samples after the header")
     col = {name: table[:, i] for i, name in enumerate(wanted)}
-    rate = fs_hz
+    rate = None
     summary = path.parent / "summary.json"
-    if rate is None and "t_s" in col and table.shape[0] > 1:
+    if "t_s" in col and table.shape[0] > 1:
         dt = np.diff(col["t_s"])
         step = float(np.median(dt))
         if not step > 0 or np.any(np.abs(dt - step) > 0.01 * step):
@@ -224,6 +226,8 @@ def read_run_log(path: str | Path, fs_hz: float | None = None, groups: tuple[str
         rate = 1.0 / step
     if rate is None and summary.is_file():
         rate = json.loads(summary.read_text()).get("sensor", {}).get("output_rate_hz")
+    if rate is None:
+        rate = fs_hz
     if rate is None:
         raise ValueError(f"{path}: no t_s column and no summary.json: give the sample rate (--fs HZ)")
     name = path.parent.name if path.name == "log.csv" else path.stem

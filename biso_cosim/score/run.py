@@ -52,8 +52,9 @@ def default_methods() -> list[Method]:
     return [make_method(n) for n in DEFAULT_METHODS if n not in PEERS or peer_available(n)]
 
 
-def score_recording(rec: Recording, methods: list[Method], keep_errors: bool = False) -> dict:
-    """Run every method on one recording; RMSE per error measure and the estimator's seconds."""
+def score_recording(rec: Recording, methods: list[Method], keep_errors: bool = False) -> tuple[dict, dict]:
+    """Run every method on one recording: (entry with the RMSE of each error measure and the
+    estimator's seconds per method, {label: per-sample errors (rad)} if ``keep_errors``)."""
     entry: dict[str, Any] = {
         "path": rec.path, "format": rec.format, "fs_hz": rec.fs_hz, "samples": len(rec),
         "scored_samples": int(np.count_nonzero(rec.movement & np.all(np.isfinite(rec.q_ref), axis=1))),
@@ -69,7 +70,7 @@ def score_recording(rec: Recording, methods: list[Method], keep_errors: bool = F
                                      "seconds": seconds}
         if keep_errors:
             errors[m.label] = errs
-    return (entry, errors) if keep_errors else entry
+    return entry, errors
 
 
 def group_means(trials: dict[str, dict], labels: list[str]) -> dict[str, dict]:
