@@ -138,3 +138,13 @@ def test_bad_input_is_one_line_and_exit_code_2(folder, tmp_path, capsys, argv, m
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith("biso-cosim score: error: ")
     assert message.format(**paths) in err
+
+
+def test_docs_name_every_method_and_format():
+    from biso_cosim.score.methods import method_names
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "score.md").read_text()
+    missing = [n for n in method_names() if f"`{n}`" not in text]
+    assert not missing, f"docs/score.md does not name {missing}"
+    for key in ("imu_gyr", "imu_acc", "imu_mag", "opt_quat", "movement", "sampling_rate", "true_qw"):
+        assert f"`{key}`" in text
