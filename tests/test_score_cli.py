@@ -116,9 +116,13 @@ def test_a_users_estimator_by_module_path_and_from_python(folder, tmp_path, monk
     assert m["mine"] == {**m["poisson"], "seconds": m["mine"]["seconds"]}
     assert not (out / f"{NAME}.png").exists()
     # from Python: the factory, or an instance (reset before each recording)
-    r = score(folder, [GyroOnly, "poisson"], plots=False)
+    from biso_cosim.cosim import EstimatorSpec
+
+    instance = EstimatorSpec("mine", label="instance", instance=GyroOnly(2000.0 / 7.0))  # as run_route takes it
+    r = score(folder, [GyroOnly, instance, "poisson"], plots=False)
+    assert list(r["methods"]) == ["GyroOnly", "instance", "poisson"] and r["methods"]["instance"]["kind"] == "user"
     m = r["trials"][NAME]["methods"]
-    assert m["GyroOnly"]["total_rmse_deg"] == m["poisson"]["total_rmse_deg"]
+    assert m["GyroOnly"]["total_rmse_deg"] == m["instance"]["total_rmse_deg"] == m["poisson"]["total_rmse_deg"]
 
 
 @pytest.mark.parametrize("argv,message", [
