@@ -36,6 +36,7 @@ import numpy as np
 from biso_cosim.estimators import make_estimator
 from biso_cosim.frames import quat_from_euler, quat_multiply
 from biso_cosim.metrics import ANGLES, angle_errors_deg
+from biso_cosim.output import write_text_atomic
 
 __all__ = ["Dataset", "route_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
            "DEFAULT_MOTIONS", "format_table"]
@@ -199,18 +200,29 @@ def _stats(q: np.ndarray, d: Dataset) -> dict[str, dict[str, float]]:
 def compare(routes: Iterable[str] = ("figure8",), motions: Iterable[str] = DEFAULT_MOTIONS,
             seeds: Iterable[int] = (0,), methods: Iterable[str] = DEFAULT_METHODS, *,
             route_duration_s: float | None = None, motion_duration_s: float | None = None,
-            progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+            progress: Callable[[str], None] | None = None,
+            on_dataset: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
     """Run every method on every (dataset, seed); returns ``{"rows": [...], "config": {...}}``.
 
     Each row: dataset, kind, seed, method, errors {roll, pitch, heading, total: {rms_deg,
     max_abs_deg}}, seconds (wall time of the method on that dataset). A method whose optional
     dependency is missing is reported once in ``config["skipped"]`` and left out.
+    ``progress(message)`` is called before each (dataset, seed); ``on_dataset(result)`` after
+    each, with the rows so far (the CLI writes them, so that an interrupted comparison keeps
+    the datasets that finished).
     """
     methods = list(methods)
     for m in methods:
         if m not in METHODS:
             raise ValueError(f"unknown method {m!r}; known: {', '.join(METHODS)}")
     rows, skipped = [], {}
+    routes, motions, seeds = list(routes), list(motions), list(seeds)
+
+    def result() -> dict[str, Any]:
+        return {"rows": list(rows), "config": {"routes": routes, "motions": motions, "seeds": [int(s) for s in seeds],
+                                               "methods": methods, "skipped": dict(skipped),
+                                               "motion_registers": MOTION_REGISTERS}}
+
     jobs = [("route", r) for r in routes] + [("motion", m) for m in motions]
     for seed in seeds:
         for kind, name in jobs:
@@ -230,9 +242,9 @@ def compare(routes: Iterable[str] = ("figure8",), motions: Iterable[str] = DEFAU
                 rows.append({"dataset": name, "kind": kind, "seed": int(seed), "method": m,
                              "errors": _stats(q, d), "seconds": time.perf_counter() - start,
                              "samples": int(len(d.t_s))})
-    return {"rows": rows, "config": {"routes": list(routes), "motions": list(motions), "seeds": [int(s) for s in seeds],
-                                     "methods": methods, "skipped": skipped,
-                                     "motion_registers": MOTION_REGISTERS}}
+            if on_dataset:
+                on_dataset(result())
+    return result()
 
 
 def summarize(result: dict[str, Any]) -> dict[tuple[str, str], dict[str, float]]:
@@ -267,6 +279,6 @@ def write(result: dict[str, Any], out_dir: str | Path) -> dict[str, Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"json": out / "results.json", "table": out / "table.md"}
-    paths["json"].write_text(json.dumps(result, indent=2))
-    paths["table"].write_text(format_table(result) + "\n")
+    write_text_atomic(paths["json"], json.dumps(result, indent=2))
+    write_text_atomic(paths["table"], format_table(result) + "\n")
     return paths

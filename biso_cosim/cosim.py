@@ -15,6 +15,8 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+import signal
+import threading
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
@@ -839,7 +841,8 @@ class CoSimulation:
                 self._est_log[key].append(out)
         return samples, at_samples, outputs
 
-    def run(self, progress: bool = False, block_periods: int | None = None) -> "RunResult | None":
+    def run(self, progress: bool = False, block_periods: int | None = None,
+            stop_on_interrupt: bool = False) -> "RunResult | None":
         """Run to ``duration_s`` from wherever the simulation stands; the whole log so far.
 
         The driver and the physics advance one control period at a time; the sensor and the
@@ -849,6 +852,10 @@ class CoSimulation:
         calls. Default: 10 periods, or 1 when a user's estimator is in the loop (it is called
         once per control period, as documented, in case it is not chunk-invariant).
         With ``keep_log=False`` it returns None.
+
+        ``stop_on_interrupt``: Ctrl-C (SIGINT, in the main thread) ends the run at the end of
+        the control period under way instead of raising KeyboardInterrupt; the result holds
+        what was simulated, with ``interrupted`` set (the CLI writes it and exits 130).
         """
         if block_periods is None:
             block_periods = 1 if any(isinstance(e, _UserEstimator) for e in self.estimators.values()) else 10
@@ -862,8 +869,9 @@ class CoSimulation:
             bar = tqdm(total=round(self.duration_s), unit="sim s", desc=self.route.name, leave=False)
         per_second = max(int(round(self.vehicle.control_rate_hz)), 1)
         block: list[Truth] = []
+        stop = _InterruptFlag(stop_on_interrupt)
         try:
-            while not self.done:
+            while not self.done and not stop.raised:
                 block.append(self._drive())
                 if len(block) == block_periods or self.done:
                     pending, block = block, []
@@ -875,7 +883,12 @@ class CoSimulation:
                 self._sense(Truth.concatenate(block))
             if bar is not None:
                 bar.close()
-        return self.result(wall_time_s=time.perf_counter() - start) if self.keep_log else None
+            stop.restore()
+        if not self.keep_log:
+            return None
+        result = self.result(wall_time_s=time.perf_counter() - start)
+        result.interrupted = stop.raised
+        return result
 
     def result(self, wall_time_s: float = float("nan")) -> "RunResult":
         if not self.keep_log:
@@ -946,6 +959,25 @@ class CoSimulation:
         return chunk.at(t_s, self.vehicle.physics_rate_hz, before)
 
 
+class _InterruptFlag:
+    """While enabled (and in the main thread), SIGINT sets ``raised`` instead of raising
+    KeyboardInterrupt; ``restore`` puts the previous handler back."""
+
+    def __init__(self, enabled: bool):
+        self.raised = False
+        self._installed = enabled and threading.current_thread() is threading.main_thread()
+        if self._installed:
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+
+    def _handle(self, signum, frame) -> None:
+        self.raised = True
+
+    def restore(self) -> None:
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous if self._previous is not None else signal.default_int_handler)
+            self._installed = False
+
+
 @dataclass
 class CoSimState:
     """The whole state of a :class:`CoSimulation` (see ``get_state``); picklable."""
@@ -988,6 +1020,7 @@ class RunResult:
     log_start_s: float = 0.0
     finished_at_s: float | None = None
     progress_m: np.ndarray | None = None  # the driver's progress along the route, per control period
+    interrupted: bool = False  # ended by Ctrl-C (``run(stop_on_interrupt=True)``)
 
     @property
     def t_s(self) -> np.ndarray:

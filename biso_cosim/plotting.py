@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from biso_cosim.metrics import ANGLES, attitude_angles_deg  # noqa: E402
+from biso_cosim.output import atomic_output  # noqa: E402
 
 __all__ = ["plot_run", "plot_navigation"]
 
@@ -82,7 +83,8 @@ def plot_run(result, path: str | Path) -> Path:
         f"route {result.route.name}, seed {result.seed}, {result.duration_s:.0f} s simulated; "
         f"MPU-9250 '{result.sensor['profile']}' at {result.sensor['output_rate_hz']:g} Hz"
     )
-    fig.savefig(path, dpi=110)
+    with atomic_output(path) as temporary:  # the image whole or not at all
+        fig.savefig(temporary, dpi=110)
     plt.close(fig)
     return path
 
@@ -117,6 +119,7 @@ def plot_navigation(result, path: str | Path) -> Path:
         ax.legend(fontsize=8)
     fig.suptitle(f"dead reckoning from the true initial state: route {result.route.name}, seed {result.seed}, "
                  f"MPU-9250 '{result.sensor['profile']}'")
-    fig.savefig(path, dpi=110)
+    with atomic_output(path) as temporary:  # the image whole or not at all
+        fig.savefig(temporary, dpi=110)
     plt.close(fig)
     return path

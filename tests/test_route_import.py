@@ -18,7 +18,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from biso_cosim.routes import RouteWarning, car_limits, load_route, parse_route
-from biso_cosim.routes.files import atomic_output
+from biso_cosim.output import atomic_output
 from biso_cosim.routes.importing import TURN_MARGIN, convert_track, import_track, write_route_file
 from biso_cosim.routes.smoothing import bin_along, smooth_along, whittaker, whittaker_lambda
 from biso_cosim.routes.synthetic import synthetic_track, write_gpx

@@ -16,13 +16,14 @@ failed run run again on resume) is read once: the rows that finished last.
 from __future__ import annotations
 
 import json
-import os
 import uuid
 from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from biso_cosim.output import atomic_output
 
 __all__ = ["ResultStore", "StoreError", "read_results"]
 
@@ -37,13 +38,8 @@ class StoreError(ValueError):
 
 def _atomic_write(path: Path, write) -> None:
     """``write(temporary_path)``, then rename it to ``path``: readers never see a partial file."""
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_output(path, keep_suffix=False) as temporary:
+        write(temporary)
 
 
 def _table(rows: list[dict[str, Any]]) -> pa.Table:

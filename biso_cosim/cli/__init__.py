@@ -88,14 +88,20 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (UserError, ValueError, TypeError, KeyError, FileNotFoundError) as exc:
+    except KeyboardInterrupt:  # Ctrl-C outside a run's own handling (a run writes what it has: cli/run.py)
+        print(f"biso-cosim {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except (UserError, ValueError, TypeError, KeyError, OverflowError, OSError) as exc:
         # Input problems (the message names the argument): one line, no traceback. A command
         # that has checked its input and started the real work sets args.running, after
         # which an exception is a bug and keeps its traceback.
         if getattr(args, "running", False) and not isinstance(exc, UserError):
             raise
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"biso-cosim {args.command}: error: {message}", file=sys.stderr)
+        if isinstance(exc, OSError) and not isinstance(exc, FileNotFoundError) and exc.filename:
+            message = f"{exc.filename}: {exc.strerror or exc}"  # PermissionError, IsADirectoryError, ...
+        text = " ".join(str(message).split())  # one line
+        print(f"biso-cosim {args.command}: error: {text}", file=sys.stderr)
         return 2
 
 

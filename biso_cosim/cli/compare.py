@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def _csv(text: str) -> list[str]:
@@ -41,21 +40,43 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="simulated seconds per route (default: the whole route)")
     p.add_argument("--motion-duration", type=float, default=None, metavar="S",
                    help="seconds per test motion (default: the motion's own)")
-    p.add_argument("--out", default="out/compare", metavar="DIR", help="output directory (default out/compare)")
+    p.add_argument("--out", default="out/compare", metavar="DIR",
+                   help="output directory (default out/compare); results.json and table.md are rewritten as each "
+                        "dataset finishes, so an interrupted comparison keeps the datasets done")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from biso_cosim.compare import compare, format_table, write
+    from biso_cosim.output import check_output_dir, check_output_file
     from biso_cosim.routes import route_names
 
+    out = check_output_dir(args.out)
+    for name in ("results.json", "table.md"):
+        check_output_file(out / name)
     routes = route_names() if args.routes is None else args.routes
-    result = compare(routes, args.motions, args.seeds, args.methods,
-                     route_duration_s=args.route_duration, motion_duration_s=args.motion_duration,
-                     progress=lambda msg: print(f"  {msg}", file=sys.stderr))
+    bar = tqdm(total=len(args.seeds) * (len(routes) + len(args.motions)), unit="dataset", desc="compare",
+               disable=args.no_progress)
+
+    def started(message: str) -> None:
+        bar.set_postfix_str(message)
+
+    def finished(result: dict) -> None:  # each dataset's rows written as it finishes
+        write(result, out)
+        bar.update(1)
+
+    try:
+        result = compare(routes, args.motions, args.seeds, args.methods,
+                         route_duration_s=args.route_duration, motion_duration_s=args.motion_duration,
+                         progress=started, on_dataset=finished)
+    finally:
+        bar.close()
     print(format_table(result))
     for method, why in result["config"]["skipped"].items():
         print(f"skipped {method}: {why}")
-    paths = write(result, args.out)
+    paths = write(result, out)
     print(f"wrote {paths['json']} and {paths['table']}")
     return 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import ast
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -30,8 +30,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("input", help="sensor log, CSV")
-    p.add_argument("--out", required=True, help="output CSV")
-    p.add_argument("--method", default="biso", help="estimator name (default biso)")
+    p.add_argument("--out", required=True, help="output CSV (never the input)")
+    p.add_argument("--method", default=None,
+                   help="estimator name (default: every estimator of the run when the log has a run's "
+                        "summary.json beside it, else biso)")
+    p.add_argument("--summary", default=None, metavar="FILE",
+                   help="the run's summary.json (default: the one beside the log, if any): the estimators, their "
+                        "parameters, the inputs the run fed them and the sample rate are taken from it, and the "
+                        "log's row count is checked against it")
+    p.add_argument("--no-summary", action="store_true", help="ignore a summary.json beside the log")
     p.add_argument("--fs", type=float, default=None, metavar="HZ",
                    help="sample rate; default from the header (raw logs) or the t_s column")
     p.add_argument("--declination-deg", type=float, default=None,
@@ -53,24 +60,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="rotation chip -> body: q_body_chip, or 9 numbers row by row (default identity)")
     si = p.add_argument_group("SI logs")
     si.add_argument("--speed-column", default=None, metavar="NAME",
-                    help="column with the forward speed in m/s for estimators that take speed_mps "
-                         "(e.g. speed_mps of a run's log)")
+                    help="column with the forward speed in m/s for estimators that take speed_mps (default: "
+                         "the column the run's summary names, else odometry_mps if the log has it)")
     p.set_defaults(func=main)
 
 
-def sample_rate_from_times(t_s: np.ndarray) -> float:
-    """The sample rate of uniformly spaced, increasing time stamps; errors say where they are not."""
+def sample_rate_from_times(t_s: np.ndarray, path: Path | str = "the log") -> float:
+    """The sample rate of uniformly spaced, increasing time stamps; errors name the file and
+    the data row (1 = the first after the header) where they are not."""
     dt = np.diff(t_s)
     if t_s.shape[0] < 2:
-        raise UserError("t_s: need at least two samples to know the sample rate (or give --fs)")
+        raise UserError(f"{path}: t_s: need at least two samples to know the sample rate (or give --fs)")
     bad = np.flatnonzero(~(dt > 0))
     if bad.size:
-        raise UserError(f"t_s must increase: sample {bad[0] + 1} (t = {t_s[bad[0] + 1]!r}) does not")
+        i = int(bad[0]) + 1
+        raise UserError(f"{path}, line {i + 2} (data row {i + 1}): t_s must increase, but t = {float(t_s[i]):g} s follows "
+                        f"t = {float(t_s[i - 1]):g} s")
     step = float(np.median(dt))
     off = np.flatnonzero(np.abs(dt - step) > 0.01 * step)
     if off.size:
-        raise UserError(f"t_s must be evenly spaced ({step:.6g} s): the step after sample {off[0]} is "
-                        f"{dt[off[0]]:.6g} s (resample the log, or give --fs to ignore t_s)")
+        i = int(off[0])
+        raise UserError(f"{path}, line {i + 3} (data row {i + 2}): t_s must be evenly spaced ({step:.6g} s): the step before it "
+                        f"is {float(dt[i]):.6g} s (resample the log, or give --fs to ignore t_s)")
     return 1.0 / step
 
 
@@ -78,11 +89,16 @@ def _header_columns(path: Path) -> list[str]:
     """Column names of a CSV whose first non-comment line names them."""
     if not path.is_file():
         raise FileNotFoundError(f"input file {str(path)!r} does not exist")
-    with path.open() as handle:
-        for line in handle:
-            text = line.strip()
-            if text and not text.startswith("#"):
-                return [c.strip() for c in text.split(",")]
+    try:
+        with path.open() as handle:
+            for line in handle:
+                text = line.strip()
+                if "\x00" in text:
+                    raise UserError(f"{path}: a binary file, not a CSV text file")
+                if text and not text.startswith("#"):
+                    return [c.strip() for c in text.split(",")]
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: a binary file, not a CSV text file (a byte of it is not UTF-8)") from None
     raise UserError(f"{path}: the file is empty")
 
 
@@ -107,17 +123,17 @@ def _declination_deg(path: Path, columns: list[str], option: float | None) -> fl
     return float(values[0])
 
 
-def _read_si(path: Path, columns: list[str], args: argparse.Namespace, takes: tuple[str, ...]):
+def _read_si(path: Path, columns: list[str], speed_column: str | None, method: str, takes: tuple[str, ...]):
     from biso_cosim.logs import read_sensor_csv
 
     data = read_sensor_csv(path)
     inputs = {}
     if "imu_flags" in columns and "imu_flags" in takes:
         inputs["imu_flags"] = _column(path, columns, "imu_flags", "imu_flags")
-    if args.speed_column is not None:
+    if speed_column is not None:
         if "speed_mps" not in takes:
-            raise UserError(f"--speed-column: {args.method} takes no speed input")
-        inputs["speed_mps"] = _column(path, columns, args.speed_column, "--speed-column")
+            raise UserError(f"--speed-column: {method} takes no speed input")
+        inputs["speed_mps"] = _column(path, columns, speed_column, "--speed-column")
     return (data["gyro"], data["accel"], data["mag"]), data["t_s"], None, inputs, {}
 
 
@@ -138,41 +154,135 @@ def _read_raw(path: Path, args: argparse.Namespace):
     return (log.raw,), log.t_s, log.fs_hz, {}, config
 
 
+def _run_summary(path: Path, args: argparse.Namespace) -> tuple[Path | None, dict | None]:
+    """The run's summary.json: --summary, else the one beside the log (a run's output
+    directory), else none; a file that is not a run's summary is refused when named."""
+    if args.no_summary:
+        return None, None
+    named = args.summary is not None
+    where = Path(args.summary) if named else path.with_name("summary.json")
+    if not where.is_file():
+        if named:
+            raise UserError(f"--summary {str(where)!r} " + ("is a directory" if where.is_dir() else "does not exist")
+                            + "; expected a run's summary.json")
+        return None, None
+    try:
+        summary = json.loads(where.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        if named:
+            raise UserError(f"--summary {str(where)!r}: not JSON ({exc}); expected a run's summary.json") from None
+        return None, None
+    if not (isinstance(summary, dict) and isinstance(summary.get("estimators"), dict) and "samples" in summary):
+        if named:
+            raise UserError(f"--summary {str(where)!r}: not a run's summary.json (no samples, estimators)")
+        return None, None
+    return where, summary
+
+
+def _jobs(args: argparse.Namespace, summary: dict | None) -> list[tuple[str, str, dict, dict]]:
+    """(label, method, parameters, log columns of the per-sample inputs) of each estimator to
+    run: --method, or else every estimator of the run (its summary), or else biso."""
+    if args.method is not None or summary is None:
+        method = args.method or "biso"
+        entry = _summary_entry(summary, method) if summary is not None else None
+        return [(method, method, dict(entry["params"]) if entry else {}, _inputs_of(summary, entry))]
+    return [(label, entry["method"], dict(entry.get("params") or {}), _inputs_of(summary, label))
+            for label, entry in summary["estimators"].items()]
+
+
+def _summary_entry(summary: dict, method: str):
+    """The run's estimator of that name without a label of its own, if any (its inputs are reused)."""
+    entry = summary["estimators"].get(method)
+    return entry if entry is not None and entry.get("method") == method else None
+
+
+def _inputs_of(summary: dict | None, label) -> dict:
+    if summary is None or label is None:
+        return {}
+    key = label if isinstance(label, str) else None
+    if key is None:  # an entry: find its label
+        key = next((k for k, e in summary["estimators"].items() if e is label), None)
+    return (summary.get("estimator_inputs") or {}).get(key, {})
+
+
+def _count_rows(path: Path) -> int:
+    """Data rows of a CSV (lines after the header that are neither empty nor comments)."""
+    with path.open() as handle:
+        lines = (line.strip() for line in handle)
+        return sum(1 for line in lines if line and not line.startswith("#")) - 1
+
+
 def main(args: argparse.Namespace) -> int:
-    from biso_cosim.estimators import estimate_attitude, estimator_inputs, flags
+    from biso_cosim.estimators import estimate_attitude, estimator_inputs, estimator_names, flags
     from biso_cosim.estimators.rawlog import is_raw_header
-    from biso_cosim.logs import write_estimates_csv
+    from biso_cosim.logs import write_estimates_table
+    from biso_cosim.output import check_output_file
 
     path = Path(args.input)
+    if path.is_dir():
+        raise UserError(f"input {str(path)!r} is a directory; expected a CSV sensor log")
+    if args.method is not None and args.method not in estimator_names():
+        raise UserError(f"--method: unknown estimator {args.method!r}; known: {', '.join(estimator_names())}")
+    out_path = check_output_file(args.out, inputs=[path])
+    if args.fs is not None and not (math.isfinite(args.fs) and 0.1 <= args.fs <= 100_000.0):
+        raise UserError(f"--fs must be a sample rate in Hz between 0.1 and 100000, got {args.fs:g}")
     columns = _header_columns(path)
     kind = args.format if args.format != "auto" else ("raw" if is_raw_header(columns) else "si")
-    takes = estimator_inputs(args.method)
-    if kind == "raw":
-        arrays, t_s, fs_header, inputs, config = _read_raw(path, args)
-    else:
-        arrays, t_s, fs_header, inputs, config = _read_si(path, columns, args, takes)
-    if args.fs is not None:
-        if not (math.isfinite(args.fs) and args.fs > 0):
-            raise UserError(f"--fs must be a positive sample rate in Hz, got {args.fs}")
-        fs = args.fs
-    elif fs_header is not None:
-        fs = fs_header
-    elif t_s is not None:
-        fs = sample_rate_from_times(t_s)
-    else:
-        raise UserError(f"{args.input}: no t_s column (nor fs_hz in the header); give the sample rate with --fs")
-    params = parse_params(args.param, "--param")
-    declination_deg = _declination_deg(path, columns, args.declination_deg)
-    params.setdefault("declination_rad", math.radians(declination_deg))
-    if "gnss" in takes:
-        print(f"note: a sensor log carries no GNSS fixes; {args.method} runs on its unaided fall-back "
-              "(docs/gnss.md); use the Python API with GnssFixes for GNSS aiding")
-    est = estimate_attitude(*arrays, fs=fs, method=args.method, full_output=True, **config, **params, **inputs)
-    q, out_flags = est.q_wb, est.flags
-    out = write_estimates_csv(Path(args.out), q, out_flags, t_s, prefix=args.method)
-    counts = [f"{name} {int(np.count_nonzero(out_flags & bit))}" for bit, name in flags.NAMES.items()
-              if np.any(out_flags & bit)]
-    print(f"{args.method} on a {kind} log at {fs:g} Hz, {q.shape[0]} samples, declination "
-          f"{math.degrees(params['declination_rad']):.2f}°; flagged: "
-          f"{', '.join(counts) if counts else 'none'}; wrote {out}")
+    summary_path, summary = _run_summary(path, args) if kind == "si" else (None, None)
+    if summary is not None:
+        rows = _count_rows(path)
+        if rows != summary["samples"]:
+            raise UserError(f"{path} has {rows} rows, but {summary_path} says the run logged {summary['samples']} "
+                            "samples: the log is cut short or from another run (give --no-summary to use it anyway)")
+    jobs = _jobs(args, summary)
+    estimates, lines = {}, []
+    for label, method, params, inputs_of_run in jobs:
+        takes = estimator_inputs(method)
+        if "gnss" in takes or "increments" in inputs_of_run:
+            what = "GNSS fixes" if "gnss" in takes else "the gyro increments of its coning step"
+            if len(jobs) > 1:
+                print(f"skipped {label}: it was fed {what}, which a sensor log does not hold")
+                continue
+            if "gnss" in takes:
+                print(f"note: a sensor log carries no GNSS fixes; {method} runs on its unaided fall-back "
+                      "(docs/gnss.md); use the Python API with GnssFixes for GNSS aiding")
+        speed_column = args.speed_column
+        if speed_column is None and "speed_mps" in takes:
+            speed_column = (inputs_of_run.get("columns") or {}).get("speed_mps")
+            if speed_column is None and "odometry_mps" in columns:
+                speed_column = "odometry_mps"
+        if kind == "raw":
+            arrays, t_s, fs_header, inputs, config = _read_raw(path, args)
+        else:
+            arrays, t_s, fs_header, inputs, config = _read_si(path, columns, speed_column, method, takes)
+        if args.fs is not None:
+            fs = args.fs
+        elif summary is not None:
+            fs = float(summary["sensor"]["output_rate_hz"])
+        elif fs_header is not None:
+            fs = fs_header
+        elif t_s is not None:
+            fs = sample_rate_from_times(t_s, path)
+        else:
+            raise UserError(f"{args.input}: no t_s column (nor fs_hz in the header); give the sample rate with --fs")
+        params |= {k: tuple(v) if isinstance(v, list) else v
+                   for k, v in (inputs_of_run.get("params") or {}).items()}
+        params |= parse_params(args.param, "--param")
+        if args.declination_deg is not None or "declination_rad" not in params:
+            params["declination_rad"] = math.radians(_declination_deg(path, columns, args.declination_deg))
+        est = estimate_attitude(*arrays, fs=fs, method=method, full_output=True, **config, **params, **inputs)
+        estimates[label] = (est.q_wb, est.flags)
+        counts = [f"{name} {int(np.count_nonzero(est.flags & bit))}" for bit, name in flags.NAMES.items()
+                  if np.any(est.flags & bit)]
+        fed = f", speed from {speed_column}" if "speed_mps" in inputs else ""
+        lines.append(f"{label} ({method}) on a {kind} log at {fs:g} Hz, {est.q_wb.shape[0]} samples, declination "
+                     f"{math.degrees(params['declination_rad']):.2f}°{fed}; flagged: "
+                     f"{', '.join(counts) if counts else 'none'}")
+    if not estimates:
+        raise UserError(f"{path}: none of the run's estimators can run on a sensor log")
+    out = write_estimates_table(out_path, estimates, t_s)
+    if summary is not None:
+        print(f"inputs from {summary_path}")
+    print("\n".join(lines))
+    print(f"wrote {out}")
     return 0

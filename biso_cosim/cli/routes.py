@@ -97,7 +97,7 @@ def list_routes(args: argparse.Namespace) -> int:
 
 
 def show_route(args: argparse.Namespace) -> int:
-    from biso_cosim.routes.files import check_output_file
+    from biso_cosim.output import check_output_file
 
     inputs = [args.route] if Path(args.route).exists() else []
     out = check_output_file(args.out, suffixes=_PLOT_SUFFIXES, inputs=inputs)
@@ -130,7 +130,7 @@ class _Bar:
 
 def import_route(args: argparse.Namespace) -> int:
     from biso_cosim.routes import parse_route
-    from biso_cosim.routes.files import check_output_file
+    from biso_cosim.output import check_output_file
     from biso_cosim.routes.importing import convert_track, read_track, write_route_file
     from biso_cosim.routes.tracks import check_track_file
 
@@ -173,7 +173,7 @@ def import_route(args: argparse.Namespace) -> int:
 def check_routes(args: argparse.Namespace) -> int:
     from biso_cosim.routes import route_names
     from biso_cosim.routes.check import drive_route_check
-    from biso_cosim.routes.files import atomic_output, check_output_file
+    from biso_cosim.output import atomic_output, check_output_file
 
     names = args.routes or route_names()
     out = check_output_file(args.out, suffixes=(".json",), inputs=[n for n in names if Path(n).exists()]) \

@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 from biso_cosim.cli import UserError, estimator_spec
 
 BASELINE = "poisson"
+ODOMETRY_COLUMN = "odometry_mps"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +22,10 @@ def register(sub: argparse._SubParsersAction) -> None:
             "Drive a route with the scripted driver; the virtual MPU-9250 feeds the estimators in "
             "the loop. Prints RMS and largest errors of roll, pitch and heading per estimator and, "
             "on closed routes driven to the end, the start-to-end difference of each angle. Writes "
-            "OUT/summary.json, OUT/log.csv and OUT/attitude.png."
+            "OUT/summary.json, OUT/log.csv and OUT/attitude.png. Exit codes: 0 the run drove its "
+            "route (or the part --duration asked for), 2 bad input, 3 the run failed (status and reason "
+            "first on screen and in summary.json; see --allow-incomplete), 130 interrupted by Ctrl-C "
+            "(what was simulated is written)."
         ),
     )
     p.add_argument("--route", default="loop600", help="library route name or route file (.toml); default loop600")
@@ -46,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, metavar="DIR", help="output directory (default out/<route>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-log", action="store_true", help="skip log.csv (large for long routes)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="exit 0 even when the run failed (the car left the route, rolled over, got stuck or did "
+                        "not finish; summary.json's status says which): without it such a run exits 3")
     p.set_defaults(func=main)
 
 
@@ -101,11 +109,47 @@ def print_summary(summary: dict) -> None:
               "before driving off), each averaged over 1 s")
 
 
+def estimator_inputs_of(sim) -> dict[str, dict]:
+    """What the run fed each of its estimators besides the sensor samples, for summary.json
+    (``biso-cosim estimate`` reads it back): the parameters the run set (declination, the
+    point where the wheel odometry's speed is measured) and the log columns of the
+    per-sample inputs."""
+    out = {}
+    for key, est in sim.estimators.items():
+        params = getattr(est, "params", None)
+        takes = tuple(getattr(est, "inputs", ()))
+        entry: dict = {"params": {}, "columns": {}}
+        for name in ("declination_rad", "speed_point_b_m"):
+            if params is not None and hasattr(params, name):
+                value = getattr(params, name)
+                entry["params"][name] = list(value) if isinstance(value, tuple) else value
+        if "speed_mps" in takes:
+            entry["columns"]["speed_mps"] = ODOMETRY_COLUMN
+        if "imu_flags" in takes:
+            entry["columns"]["imu_flags"] = "imu_flags"
+        if "gnss" in takes:
+            entry["gnss"] = "GNSS fixes: not in the log"
+        if "dtheta_b" in takes and getattr(params, "gyro_step", "hold") != "hold":
+            entry["increments"] = "gyro increments: not in the log"
+        out[key] = entry
+    return out
+
+
+def _output_files(args: argparse.Namespace, out: Path, inputs: list[str]) -> None:
+    """--out checked before any work: a directory that can be written in, and none of the
+    files the run writes there an input."""
+    from biso_cosim.output import check_output_dir, check_output_file
+
+    check_output_dir(out, inputs=inputs)
+    for name in ("summary.json", "log.csv", "attitude.png", "navigation.png"):
+        check_output_file(out / name, inputs=inputs)
+
+
 def main(args: argparse.Namespace) -> int:
+    from biso_cosim.compiling import compile_notice
     from biso_cosim.cosim import DEFAULT_ESTIMATORS, DEFAULT_SENSOR_PROFILE, CoSimulation
-    from biso_cosim.logs import write_run_log
-    from biso_cosim.plotting import plot_navigation, plot_run
     from biso_cosim.routes import load_route
+    from biso_cosim.runstatus import EXIT_INTERRUPTED, EXIT_RUN_FAILED, interrupted, judge_run
 
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UserError(f"--duration must be a positive number of seconds, got {args.duration}")
@@ -117,20 +161,67 @@ def main(args: argparse.Namespace) -> int:
     if not args.no_baseline and BASELINE not in {s.key for s in specs}:
         specs.append(estimator_spec(BASELINE))
     out = Path(args.out or Path("out") / route.name)
+    inputs = [p for p in (args.route, args.sensor_profile) if p and Path(p).exists()]
+    _output_files(args, out, inputs)
     sim = CoSimulation(route, duration_s=args.duration, seed=args.seed, estimators=specs,
                        sensor_profile=args.sensor_profile or DEFAULT_SENSOR_PROFILE,
                        gyro_calibration_s=args.gyro_calibration, navigators=args.navigator)
-    out.mkdir(parents=True, exist_ok=True)
     args.running = True  # from here on an exception is not an input problem (see cli.main)
-    result = sim.run(progress=not args.no_progress)
+    notice = compile_notice()
+    if notice:
+        print(notice, file=sys.stderr, flush=True)
+    result = sim.run(progress=not args.no_progress, stop_on_interrupt=True)
+    if len(result.truth) == 0:
+        print("biso-cosim run: interrupted before the first sample; nothing written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    status = interrupted(result) if result.interrupted else judge_run(result)
     summary = result.summary()
+    summary.update(status.as_dict())
+    summary["estimator_inputs"] = estimator_inputs_of(sim)
+    _print_status(status, args)
     print_summary(summary)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
-    written = [out / "summary.json"]
-    if not args.no_log:
-        written.append(write_run_log(result, out / "log.csv"))
-    written.append(plot_run(result, out / "attitude.png"))
-    if result.navigation:
-        written.append(plot_navigation(result, out / "navigation.png"))
+    written = _write_outputs(sim, result, summary, out, args)
+    if written is None:
+        return EXIT_INTERRUPTED
     print("wrote " + ", ".join(str(p) for p in written))
+    if status.status == "interrupted":
+        return EXIT_INTERRUPTED
+    if status.failed and not args.allow_incomplete:
+        return EXIT_RUN_FAILED
     return 0
+
+
+def _print_status(status, args: argparse.Namespace) -> None:
+    """The run's status, first: a failed run in capitals, so that no one reads its table as a result."""
+    if status.failed:
+        accepted = " (accepted: --allow-incomplete)" if args.allow_incomplete else ""
+        print(f"RUN FAILED: {status.status}: {status.reason}{accepted}; the errors below describe a car that did "
+              "not drive its route")
+    elif status.status == "interrupted":
+        print(f"RUN INTERRUPTED: {status.reason}; writing what was simulated")
+    else:
+        print(f"run {status.status}: {status.reason}")
+
+
+def _write_outputs(sim, result, summary: dict, out: Path, args: argparse.Namespace) -> list[Path] | None:
+    """summary.json, log.csv and the plots, each whole or not at all; None when Ctrl-C cut
+    the writing short (the files written so far are whole)."""
+    from biso_cosim.logs import write_run_log
+    from biso_cosim.output import write_text_atomic
+    from biso_cosim.plotting import plot_navigation, plot_run
+
+    written: list[Path] = []
+    try:
+        if not args.no_log:  # the log before the summary that counts its rows
+            takes_speed = any("speed_mps" in getattr(e, "inputs", ()) for e in sim.estimators.values())
+            odometry = sim._odometry_mps(result.truth) if takes_speed else None  # what the run fed them
+            written.append(write_run_log(result, out / "log.csv", odometry_mps=odometry))
+        written.append(write_text_atomic(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n"))
+        written.append(plot_run(result, out / "attitude.png"))
+        if result.navigation:
+            written.append(plot_navigation(result, out / "navigation.png"))
+    except KeyboardInterrupt:
+        print("biso-cosim run: interrupted while writing; whole files written: "
+              + (", ".join(str(p) for p in written) or "none"), file=sys.stderr)
+        return None
+    return written

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from biso_cosim.routes.files import atomic_output
+from biso_cosim.output import atomic_output
 from biso_cosim.routes.limits import car_limits
 from biso_cosim.routes.route import Route, RouteWarning, parse_route
 from biso_cosim.routes.smoothing import bin_along, smooth_along, whittaker, whittaker_lambda

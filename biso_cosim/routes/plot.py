@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from biso_cosim.routes.files import atomic_output  # noqa: E402
+from biso_cosim.output import atomic_output  # noqa: E402
 from biso_cosim.routes.route import Route  # noqa: E402
 
 __all__ = ["plot_route"]

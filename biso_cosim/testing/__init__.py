@@ -10,7 +10,9 @@ A test reads like the requirement it checks::
 
 ``estimator`` is a library name (``"biso"``), a ``(name, params)`` pair, or your own object
 with ``update(gyro_b, accel_b, mag_b)`` returning the (k, 4) ``q_wb`` of the k samples it was
-given (see :class:`biso_cosim.cosim.CoSimulation`). A failing assertion says which angle,
+given (see :class:`biso_cosim.cosim.CoSimulation`). A run whose car left the route, rolled
+over, got stuck or did not finish fails with :class:`RouteRunFailed` and the reason. A
+failing assertion says which angle,
 when it first went over, for how long in all, and the largest error with where on the
 route it happened.
 
@@ -40,7 +42,7 @@ import numpy as np
 
 from biso_cosim.metrics import ANGLES
 
-__all__ = ["drive", "DriveResult", "AttitudeErrorExceeded", "clear_cache"]
+__all__ = ["drive", "DriveResult", "AttitudeErrorExceeded", "RouteRunFailed", "clear_cache"]
 
 _ALL = (*ANGLES, "total")
 _CACHE: "OrderedDict[tuple, Any]" = OrderedDict()
@@ -49,6 +51,15 @@ _CACHE_SIZE = 16
 
 class AttitudeErrorExceeded(AssertionError):
     """An attitude error went over its bound; the message says where and by how much."""
+
+
+class RouteRunFailed(AssertionError):
+    """The run itself failed (``biso_cosim.runstatus``): its errors mean nothing. ``status``
+    is the :class:`~biso_cosim.runstatus.RunStatus`."""
+
+    def __init__(self, message: str, status: Any = None):
+        super().__init__(message)
+        self.status = status
 
 
 def clear_cache() -> None:
@@ -87,12 +98,18 @@ def _read_only(run: Any) -> Any:
 
 
 def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: float | None = None,
-          label: str | None = None, **options: Any) -> "DriveResult":
+          label: str | None = None, allow_failed: bool = False, **options: Any) -> "DriveResult":
     """Drive ``route`` (name, file or Route) with ``estimator`` in the loop; see the module doc.
 
     ``options`` go to :class:`biso_cosim.cosim.CoSimulation` (``sensor_profile``,
     ``registers``, ``mounting``, ``gyro_calibration_s``, ``control_rate_hz``, ...).
+    A run that failed (the car left the route, rolled over, got stuck, or did not finish in
+    a duration long enough to: ``biso_cosim.runstatus``) raises :class:`RouteRunFailed`
+    with the reason, unless ``allow_failed``; a shorter ``duration_s`` is a part of the
+    route, not a failure.
     """
+    from biso_cosim.runstatus import judge_run
+
     from biso_cosim.cosim import CoSimulation, EstimatorSpec
     from biso_cosim.routes import load_route
 
@@ -113,7 +130,11 @@ def drive(route: Any, estimator: Any = "biso", *, seed: int = 0, duration_s: flo
             _CACHE[key] = _read_only(run)
             while len(_CACHE) > _CACHE_SIZE:
                 _CACHE.popitem(last=False)
-    return DriveResult(run, next(iter(run.estimates)))
+    result = DriveResult(run, next(iter(run.estimates)))
+    status = judge_run(run)
+    if status.failed and not allow_failed:
+        raise RouteRunFailed(f"{result._name()}: {status.status}: {status.reason}", status)
+    return result
 
 
 @dataclass(frozen=True)
