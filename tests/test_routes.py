@@ -225,6 +225,34 @@ def test_waypoint_speed_beyond_the_top_speed_is_capped_naming_the_waypoint():
     assert route.speed_free_mps.max() <= car_limits().top_speed_mps
 
 
+def test_a_waypoint_speed_its_curving_leg_never_allows_is_capped_with_a_warning_naming_it():
+    """A square of 40 m sides with 20 m fillets is a circle of radius 20 m (started at the
+    middle of a side): the legs between two fillets curve all along, so 15 m/s on waypoint
+    2's leg is driven at sqrt(2.5 · 20) = 7.07 m/s."""
+    from biso_cosim.routes import RouteWarning
+
+    corners = [(20.0, 0.0, 0.0), (40.0, 0.0, 20.0), (40.0, 40.0, 20.0), (0.0, 40.0, 20.0), (0.0, 0.0, 20.0)]
+    data = {"name": "ring", "description": "d", "closed": True, "laps": 2,
+            "driving": {"max_lateral_accel_mps2": 2.5, "default_speed_mps": 5.0},
+            "waypoint": [{"x_m": x, "y_m": y, "radius_m": r} for x, y, r in corners]}
+    data["waypoint"][2]["speed_mps"] = 15.0
+    with pytest.warns(RouteWarning, match=r"ring.toml: waypoint\[2\].speed_mps = 15 m/s is never reached: its leg "
+                                          r"curves all along \(radius 20.0 m at the widest\), which allows at most "
+                                          r"7.1 m/s"):
+        route = parse_route(data, source="ring.toml")
+    on_leg = (route.path.leg % 5) == 2
+    assert route.speed_free_mps[on_leg].max() == pytest.approx(math.sqrt(2.5 * 20.0), rel=1e-3)
+    # a leg that slows only in the curve at its end is capped silently (the library's rough_road)
+    data["waypoint"] = [{"x_m": 0.0, "y_m": 0.0}, {"x_m": 200.0, "y_m": 0.0, "radius_m": 30.0, "speed_mps": 14.0},
+                        {"x_m": 200.0, "y_m": 100.0, "radius_m": 30.0}, {"x_m": 0.0, "y_m": 100.0, "radius_m": 30.0}]
+    data["laps"] = 1
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)
+        parse_route(data, source="ring.toml")
+
+
 def test_corners_the_car_cannot_take_are_refused_naming_the_waypoint():
     # a closed route of two waypoints turns back on itself at both (it parked the car forever)
     two = {"name": "two", "description": "d", "closed": True,

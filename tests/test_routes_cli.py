@@ -115,8 +115,10 @@ def test_import_warnings_are_one_line_each(files, capsys, tmp_path):
     rc, out, err = run(capsys, "import", files / "corner.gpx", "--out", tmp_path / "c.toml", "--no-progress")
     assert rc == 0
     warning = [line for line in err.splitlines() if "warning" in line]
-    assert len(warning) == 1 and warning[0].startswith("biso-cosim routes import: warning: ")
+    # the smoothing of the corner, and the recorded speed its curve caps (naming the waypoint)
+    assert len(warning) == 2 and all(w.startswith("biso-cosim routes import: warning: ") for w in warning)
     assert "smoothed over 30 m instead of 15 m" in warning[0]
+    assert re.search(r"waypoint\[\d+\]\.speed_mps = [\d.]+ m/s.* is never reached", warning[1])
 
 
 def test_show_and_check_write_their_outputs(capsys, tmp_path):

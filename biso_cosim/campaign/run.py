@@ -113,7 +113,10 @@ def execute_run(run: RunSpec) -> list[dict[str, Any]]:
                                estimators=[e.cosim_spec() for e in run.estimators],
                                sensor_profile=run.sensor.load_profile(), registers=dict(run.sensor.registers),
                                gyro_calibration_s=run.sensor.gyro_calibration_s)
+            from biso_cosim.runstatus import judge_run
+
             summary = result.summary()
+            summary.update(judge_run(result).as_dict())  # completed, partial, rolled_over, left_route, ...
             rows = run_rows(run, summary)
             if run.log_dir is not None:
                 _write_log(result, summary, run.log_dir)
@@ -131,11 +134,12 @@ def _write_log(result, summary: Mapping[str, Any], log_dir: str) -> None:
     from pathlib import Path
 
     from biso_cosim.logs import write_run_log
+    from biso_cosim.output import write_text_atomic
 
     out = Path(log_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_run_log(result, out / "log.csv")
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=str) + "\n")
+    write_run_log(result, out / "log.csv")  # each file whole or absent
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n")
 
 
 def _warm_up(runs: tuple[RunSpec, ...]) -> int:

@@ -19,7 +19,7 @@ import numpy as np
 
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _feasible_speeds, _locate
 
-__all__ = ["Path", "densify", "speed_profile"]
+__all__ = ["Path", "densify", "speed_profile", "curvature_speed_limit"]
 
 
 @dataclass(frozen=True)
@@ -170,12 +170,10 @@ def polyline_curvature(path_x: np.ndarray, path_y: np.ndarray, window_m: float, 
     return np.convolve(kappa, kernel, mode="same")
 
 
-def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mps2: float,
-                  accel_mps2: float, decel_mps2: float, zero_at: tuple[int, ...] = (),
-                  cusps: tuple[int, ...] = ()) -> np.ndarray:
-    """Target speed at each path sample, at rest at the sample indices ``zero_at`` (stops,
-    the start, the end) and feasible for the acceleration limits in between. The sampled
-    curvature is taken piece by piece between ``cusps`` (where the direction of travel flips)."""
+def curvature_speed_limit(path: Path, max_lateral_accel_mps2: float, cusps: tuple[int, ...] = ()) -> np.ndarray:
+    """The curvature limit ``sqrt(a_lat/|κ|)`` at each path sample (inf on straights), κ the
+    larger of the closed-form curvature and the sampled one, taken piece by piece between
+    ``cusps`` (where the direction of travel flips)."""
     spacing = float(np.median(np.diff(path.s_m)))
     sampled = np.zeros(len(path))
     bounds = [0, *sorted(cusps), len(path)]
@@ -183,9 +181,18 @@ def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mp
         if hi - lo >= 3:
             sampled[lo:hi] = polyline_curvature(path.x_m[lo:hi], path.y_m[lo:hi], window_m=4.0, spacing_m=spacing)
     kappa = np.maximum(np.abs(path.curvature_per_m), np.abs(sampled))
-    v = np.asarray(leg_speed_mps, dtype=np.float64)[path.leg].copy()
     with np.errstate(divide="ignore"):
-        v = np.minimum(v, np.sqrt(max_lateral_accel_mps2 / np.maximum(kappa, 1e-12)))
+        return np.sqrt(max_lateral_accel_mps2 / np.maximum(kappa, 1e-12))
+
+
+def speed_profile(path: Path, leg_speed_mps: np.ndarray, *, max_lateral_accel_mps2: float,
+                  accel_mps2: float, decel_mps2: float, zero_at: tuple[int, ...] = (),
+                  cusps: tuple[int, ...] = ()) -> np.ndarray:
+    """Target speed at each path sample, at rest at the sample indices ``zero_at`` (stops,
+    the start, the end) and feasible for the acceleration limits in between; in curves at
+    most ``curvature_speed_limit``."""
+    v = np.asarray(leg_speed_mps, dtype=np.float64)[path.leg].copy()
+    v = np.minimum(v, curvature_speed_limit(path, max_lateral_accel_mps2, cusps))
     v[list(zero_at)] = 0.0
     _feasible_speeds(v, np.diff(path.s_m), float(accel_mps2), float(decel_mps2), 2.0)
     return v

@@ -419,7 +419,39 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
                   closed=closed, laps=laps, waypoints=tuple(waypoints), driving=driving, site=site,
                   terrain=terrain, gnss_outages=tuple(outages), source=source)
     route.path  # noqa: B018 -- build now so that geometry errors surface at load time
+    _warn_curvature_caps(route, where)
     return route
+
+
+def _warn_curvature_caps(route: "Route", where: str) -> None:
+    """A RouteWarning naming each waypoint whose own ``speed_mps`` the curvature of its leg
+    caps everywhere on the leg (the speed profile drives curves at
+    ``sqrt(max_lateral_accel_mps2/|κ|)``), so that the speed asked for is never driven; with
+    the speed the leg allows. One warning for a route, the first waypoint named and the
+    others counted. A leg that slows only in the curve at its end, and legs at the default
+    speed, are capped silently: that is what the profile is for."""
+    from biso_cosim.routes.path import curvature_speed_limit
+
+    path = route.path
+    n = len(route.waypoints)
+    limit = curvature_speed_limit(path, route.driving.max_lateral_accel_mps2, route._cusp_indices)
+    capped = []
+    for k, wp in enumerate(route.waypoints):
+        if wp.speed_mps is None:
+            continue
+        on_leg = (path.leg % n) == k
+        if on_leg.any():
+            allowed = float(limit[on_leg].max())  # the fastest the leg may be driven anywhere
+            if allowed < wp.speed_mps * (1.0 - 1e-9):
+                capped.append((k, wp.speed_mps, allowed))
+    if capped:
+        k, speed, allowed = capped[0]
+        more = f" (and {len(capped) - 1} more waypoint(s))" if len(capped) > 1 else ""
+        radius = allowed ** 2 / route.driving.max_lateral_accel_mps2
+        warnings.warn(f"{where}: waypoint[{k}].speed_mps = {speed:g} m/s{more} is never reached: its leg curves "
+                      f"all along (radius {radius:.1f} m at the widest), which allows at most {allowed:.1f} m/s at "
+                      f"max_lateral_accel_mps2 = {route.driving.max_lateral_accel_mps2:g}; capped to that",
+                      RouteWarning, stacklevel=3)
 
 
 def _within_car_limits(driving: DrivingLimits, waypoints: list[Waypoint], closed: bool, laps: int,
