@@ -25,7 +25,13 @@ from __future__ import annotations
 
 import importlib
 
+from biso_cosim import _source_tree
+
 __version__ = "0.1.0"
+
+# imported from the repository itself (python started in its root): envs/ and fmu/ beside
+# the package are biso_cosim.envs and biso_cosim.fmu, as in an installed copy
+_source_tree.install(__path__[0])
 
 _LAZY = {
     "run_route": "biso_cosim.cosim",
