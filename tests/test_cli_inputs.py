@@ -60,6 +60,8 @@ BAD_INPUTS = [
     (["run", "--route", "figure8", "--sensor-profile", "{d}/a_dir", "--out", "{d}/o"], ["a_dir"]),
     (["compare", "--out", "{d}/a_file", "--routes", "", "--motions", "tumble"], ["--out", "a_file", "directory"]),
     (["routes", "import", "{d}/track.gpx", "--out", "{d}/track.gpx"], ["--out", "track.gpx"]),
+    (["score", "{d}/a_dir", "--out", "{d}/o"], ["DIR", "a_dir", "no recordings"]),
+    (["score", "{d}/nowhere", "--out", "{d}/o"], ["DIR", "nowhere", "does not exist"]),
     (["routes", "import", "{d}/a_dir", "--out", "{d}/r.toml"], ["a_dir"]),
     (["routes", "import", "{d}/binary.csv", "--out", "{d}/r.toml"], ["binary.csv"]),
 ]

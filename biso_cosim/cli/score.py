@@ -43,6 +43,10 @@ def main(args: argparse.Namespace) -> int:
     if not find_recordings(args.dir):
         raise ValueError(f"DIR: no recordings found in {args.dir!r} (expected *.hdf5, *.h5, *.npz with BROAD's "
                          "keys, or a run's log.csv)")
+    from biso_cosim.output import check_output_dir, check_output_file
+
+    out = check_output_dir(args.out, inputs=[args.dir])  # before any work
+    check_output_file(out / "score.json")
     methods = default_methods() if args.method is None else as_methods(args.method)
     result = score(args.dir, methods, out=args.out, fs_hz=args.fs, plots=not args.no_plots,
                    progress=lambda msg: print(f"  {msg}", file=sys.stderr))

@@ -62,9 +62,9 @@ def _jsonable(x):
 
 def write_json(result: dict, path: str | Path) -> Path:
     """``score.json``: the whole result (NaN written as null)."""
-    path = Path(path)
-    path.write_text(json.dumps(_jsonable(result), indent=2) + "\n")
-    return path
+    from biso_cosim.output import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(_jsonable(result), indent=2) + "\n")  # whole or absent
 
 
 def plot_trial(rec, errors_rad: dict[str, dict[str, np.ndarray]], path: str | Path, max_points: int = 2000) -> Path:
@@ -96,6 +96,9 @@ def plot_trial(rec, errors_rad: dict[str, dict[str, np.ndarray]], path: str | Pa
     axes[0].set_title(f"{rec.name} ({rec.format}, {rec.fs_hz:.6g} Hz): BROAD errors, max per {step} samples")
     axes[-1].set_xlabel("time (s)")
     fig.subplots_adjust(left=0.07, right=0.98, top=0.95, bottom=0.07, hspace=0.08)
-    fig.savefig(path, dpi=100)
+    from biso_cosim.output import atomic_output
+
+    with atomic_output(path) as temporary:  # whole or absent
+        fig.savefig(temporary, dpi=100)
     plt.close(fig)
     return Path(path)
