@@ -59,16 +59,17 @@ def _inside(a, low, high):
 
 
 @jit
-def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, driver_state):
+def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, wheel_rates, drivetrain, driver_state):
     """Driving-v0's action (throttle, steering) into MuJoCo's ``ctrl`` when it is inside
     [low, high] (``_inside``): the controls of its DriverCommand, steer = steering ·
     max_steer_rad, drive = max(throttle, 0), brake = max(−throttle, 0), by
-    ``_apply_controls`` (``VehicleSim.apply``'s). Returns the driver's progress along the
+    ``_apply_controls`` (``VehicleSim.apply``'s: the drive through the drivetrain). Returns the driver's progress along the
     route before the step (m), or NaN, with nothing written, when the action is not inside."""
     if not _inside(a, low, high):
         return math.nan
     throttle, steering = a[0], a[1]
-    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), max(-throttle, 0.0))
+    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), max(-throttle, 0.0), wheel_rates,
+                    drivetrain)
     return driver_state[S_S]
 
 

@@ -220,7 +220,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         vehicle = self._sim.vehicle
         space = self.action_space
         apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], vehicle._ctrl, vehicle._actuators,
-                 vehicle.driver.state.array)
+                 vehicle._wheel_rates, vehicle._drivetrain, vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
             before = _drive_action(self._bounded_action(a), *apply)

@@ -15,6 +15,7 @@ from biso_cosim.estimators.biso import gains_from_cutoff
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.frames import quat_angle_between
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
+from biso_cosim.vehicle.drivetrain import DRIVETRAIN, drivetrain_coefficients
 from biso_cosim.vehicle.driver import DriverCommand, DriverState
 from biso_cosim.vehicle.sim import VehicleSim
 
@@ -142,20 +143,26 @@ def test_drive_action_writes_the_controls_of_its_driver_command():
     """Driving-v0's action in one kernel: the controls ``VehicleSim.apply`` writes for the
     DriverCommand the action stands for, bit for bit (signed zeros too), and the driver's
     progress before the step; an action outside the bounds or NaN writes nothing."""
-    actuators = np.array([5, 0, 1, 2, 3, 4], dtype=np.int64)  # steering, drive, four brakes
+    actuators = np.array([6, 0, 5, 1, 2, 3, 4], dtype=np.int64)  # steering, drive, resistance, four brakes
     low, high, max_steer = np.array([-1.0, -1.0]), np.array([1.0, 1.0]), 0.6
+    wheel_rates = np.array([20.0, 20.5, 21.0, 21.3])  # fl, fr, rl, rr, rad/s
+    drivetrain = drivetrain_coefficients(DRIVETRAIN, mass_kg=1300.0, wheel_radius_m=0.316)
+    vehicle = SimpleNamespace(_actuators=actuators, _wheel_rates=wheel_rates, _drivetrain=drivetrain)
     state = DriverState()
     state.array[S_S] = 12.5
     for throttle, steering in [(0.3, -0.2), (-0.7, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, -1.0), (-1.0, 0.5)]:
         expected = np.full(7, 9.0)
         command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
-        VehicleSim.apply(SimpleNamespace(_ctrl=expected, _actuators=actuators), command)
+        vehicle._ctrl = expected
+        VehicleSim.apply(vehicle, command)
         ctrl = np.full(7, 9.0)
-        assert _drive_action(np.array([throttle, steering]), low, high, max_steer, ctrl, actuators, state.array) == 12.5
+        assert _drive_action(np.array([throttle, steering]), low, high, max_steer, ctrl, actuators, wheel_rates,
+                             drivetrain, state.array) == 12.5
         assert ctrl.tobytes() == expected.tobytes()
     for action in ([1.5, 0.0], [0.0, -1.01], [0.0, np.nan], [-np.inf, 0.0]):
         ctrl = np.full(7, 9.0)
-        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, ctrl, actuators, state.array))
+        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, ctrl, actuators, wheel_rates,
+                                        drivetrain, state.array))
         assert (ctrl == 9.0).all()
 
 

@@ -18,7 +18,7 @@ from typing import Any
 from biso_cosim import __version__
 
 # Sub-command modules, in the order they appear in --help.
-COMMANDS = ("run", "estimate", "compare", "score", "campaign", "routes", "reproduce", "sensor", "fmu")
+COMMANDS = ("run", "estimate", "compare", "score", "campaign", "routes", "reproduce", "sensor", "fmu", "vehicle")
 
 
 class UserError(Exception):

@@ -1,10 +1,10 @@
 """What the car can drive: the bounds that route files and imported tracks are checked against.
 
-One record, :class:`CarLimits`, holds them with the source of each number. Most come from
+One record, :class:`CarLimits`, holds them with the source of each number. They come from
 the compiled car model through :func:`biso_cosim.vehicle.model.vehicle_parameters` (the MJCF
-is the one source of the car's geometry, torques and tyre friction); where the model has no
-figure yet (it has no engine: no top speed), a published figure of the car's class stands
-in, named in ``sources``.
+is the one source of the car's geometry, brakes and tyre friction) and from its drivetrain
+(:mod:`biso_cosim.vehicle.drivetrain`, the one source of its engine, gears and driving
+resistances: the top speed, the drive torque).
 
 Friction limits use the fraction of the tyres' friction coefficient μ that the scripted
 driver may ask for, ``USABLE_FRICTION``: the sphere tyres steer kinematically up to 0.65 g
@@ -18,18 +18,12 @@ import math
 from dataclasses import dataclass, field
 from functools import cache
 
-__all__ = ["CarLimits", "car_limits", "USABLE_FRICTION", "CLASS_TOP_SPEED_MPS", "STANDARD_GRAVITY_MPS2",
-           "MAX_UNROUNDED_TURN_RAD"]
+__all__ = ["CarLimits", "car_limits", "USABLE_FRICTION", "STANDARD_GRAVITY_MPS2", "MAX_UNROUNDED_TURN_RAD"]
 
 STANDARD_GRAVITY_MPS2 = 9.80665
 
 USABLE_FRICTION = 0.65
 """Fraction of μ a route may use (sphere tyres: kinematic to 0.65 g, slide at 0.76 g; docs/design.md §11)."""
-
-CLASS_TOP_SPEED_MPS = 204.0 / 3.6
-"""Top speed of an 85 kW compact hatchback: VW Golf VII 1.0 TSI (85 kW, 200 N m), 204 km/h by the
-maker's figures (caradisiac.com, "Volkswagen présente une Golf 1,0 l trois cylindres"). Stands in
-until the car model has a drivetrain."""
 
 MAX_UNROUNDED_TURN_RAD = math.radians(90.0)
 """Largest turn at a waypoint without a fillet (and not a change of direction): the driver cuts
@@ -67,6 +61,7 @@ class CarLimits:
 @cache
 def car_limits() -> CarLimits:
     """The limits of the library's car (biso_cosim/vehicle/car.xml), read from its compiled model."""
+    from biso_cosim.vehicle.drivetrain import DRIVETRAIN, top_speed, traction_torque_nm
     from biso_cosim.vehicle.model import car_spec, vehicle_parameters
 
     model = car_spec().compile()
@@ -78,21 +73,29 @@ def car_limits() -> CarLimits:
     # rear-axle traction with the load transfer of the acceleration a itself:
     # μ·m·(g·b/L + a·h/L) = m·a  →  a = μ·g·(b/L) / (1 − μ·h/L)
     traction = mu * g * rear_share / (1.0 - mu * h / wheelbase)
-    torque = p["max_drive_torque_nm"] / p["wheel_radius_m"] / m
+    radius = p["wheel_radius_m"]
+    tc = traction_torque_nm(DRIVETRAIN, mass_kg=m, wheel_radius_m=radius, rear_load_share=rear_share,
+                            cg_height_over_wheelbase=h / wheelbase)
+    torque = min(p["max_drive_torque_nm"], tc) / radius / m
+    v_top, gear = top_speed(DRIVETRAIN, mass_kg=m, wheel_radius_m=radius,
+                            wheel_damping_nms=p["wheel_damping_nms_per_rad"])
     brakes = 4.0 * p["max_brake_torque_per_wheel_nm"] / p["wheel_radius_m"] / m
     # climbing from rest on a grade θ: μ·(cos θ·b/L + sin θ·h/L) = sin θ
     grade = mu * rear_share / (1.0 - mu * h / wheelbase)
     friction = f"tyre friction μ = {mu / USABLE_FRICTION:g} (car.xml) × {USABLE_FRICTION} usable (docs/design.md §11)"
     sources = {
-        "top_speed_mps": "class figure: VW Golf VII 1.0 TSI, 85 kW, 204 km/h (the model has no engine yet)",
+        "top_speed_mps": (f"drivetrain (vehicle/drivetrain.py): {DRIVETRAIN.max_power_w / 1e3:g} kW against drag "
+                          f"c_w·A = {DRIVETRAIN.drag_area_m2:g} m², rolling c_rr = {DRIVETRAIN.rolling_resistance:g} "
+                          f"and the wheel bearings, in gear {gear} ({v_top * 3.6:.0f} km/h)"),
         "accel_mps2": (f"rear-axle traction, {friction}, {rear_share:.0%} static load, load transfer "
-                       f"h/L = {h / wheelbase:.3f}; the drive torque alone allows {torque:.1f} m/s²"),
+                       f"h/L = {h / wheelbase:.3f}; the drive torque and traction control alone allow "
+                       f"{torque:.1f} m/s²"),
         "decel_mps2": f"{friction}, all four wheels braked; the brakes alone allow {brakes:.1f} m/s²",
         "lateral_accel_mps2": friction,
         "turning_radius_m": (f"wheelbase {wheelbase:g} m / tan(max steer {p['max_steer_rad']:g} rad), "
                              "car.xml"),
         "grade": f"rear-axle traction from rest, {friction}",
     }
-    return CarLimits(top_speed_mps=CLASS_TOP_SPEED_MPS, accel_mps2=min(traction, torque),
+    return CarLimits(top_speed_mps=v_top, accel_mps2=min(traction, torque),
                      decel_mps2=min(mu * g, brakes), lateral_accel_mps2=mu * g,
                      turning_radius_m=wheelbase / math.tan(p["max_steer_rad"]), grade=grade, sources=sources)

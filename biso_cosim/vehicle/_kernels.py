@@ -9,6 +9,7 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
+from biso_cosim.vehicle.drivetrain import _drivetrain_controls
 
 
 class TruthLayout(NamedTuple):
@@ -199,12 +200,12 @@ def _track_axle(px, py, ps, state, sensordata, axle_x):
 
 @jit
 def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
-                  sensordata, layout, ctrl, actuators, out):
+                  sensordata, layout, ctrl, actuators, drivetrain, out):
     """A control period of the scripted driver from MuJoCo's ``sensordata`` straight into
     ``ctrl``: what ``VehicleSim._measure`` reads (the same expressions), ``_driver_command``,
     and ``VehicleSim.apply``. ``layout``: sensordata indices of the IMU quaternion's w, the
     rear axle's x, its forward speed, the first wheel rate, and the number of wheels;
-    ``actuators``: ctrl indices of steering, drive, then the brakes."""
+    ``actuators`` and ``drivetrain``: as ``_apply_controls``'."""
     i = layout[0]
     w, x, y, z = sensordata[i], sensordata[i + 1], sensordata[i + 2], sensordata[i + 3]
     yaw = math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (y * y + z * z))
@@ -214,16 +215,19 @@ def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, s
     _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index, stop_dwell, stop_cusp, p, state,
                     sensordata[layout[1]], sensordata[layout[1] + 1], yaw, sensordata[layout[2]],
                     wheels / layout[4], out)
-    _apply_controls(ctrl, actuators, out[0], out[1], out[2])
+    _apply_controls(ctrl, actuators, out[0], out[1], out[2], sensordata[layout[3]:layout[3] + layout[4]], drivetrain)
 
 
 @jit
-def _apply_controls(ctrl, actuators, steer_rad, drive, brake):
+def _apply_controls(ctrl, actuators, steer_rad, drive, brake, wheel_rates, drivetrain):
     """A command into MuJoCo's ``ctrl``; ``actuators``: the ctrl indices of steering, drive,
-    then the brakes (each wheel's brake takes the same command)."""
+    the driving resistances, then the brakes (each wheel's brake takes the same command).
+    The drive command becomes the drivetrain's torque and the resistances' force at the
+    wheel spin rates ``wheel_rates`` (fl, fr, rl, rr) with the coefficients ``drivetrain``
+    (``vehicle.drivetrain``: the one place where every caller's drive goes through it)."""
     ctrl[actuators[0]] = steer_rad
-    ctrl[actuators[1]] = drive
-    for j in range(2, actuators.shape[0]):
+    ctrl[actuators[1]], ctrl[actuators[2]] = _drivetrain_controls(drivetrain, drive, wheel_rates)
+    for j in range(3, actuators.shape[0]):
         ctrl[actuators[j]] = brake
 
 

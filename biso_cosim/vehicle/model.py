@@ -76,6 +76,7 @@ class CarIndex:
     # actuators
     steer: int
     drive: int
+    resistance: int
     brakes: np.ndarray
     # sensordata slices
     gyro: slice
@@ -111,6 +112,7 @@ class CarIndex:
         return CarIndex(
             steer=model.actuator("steer").id,
             drive=model.actuator("drive").id,
+            resistance=model.actuator("resistance").id,
             brakes=np.array([model.actuator(f"brake_{w}").id for w in ("fl", "fr", "rl", "rr")]),
             gyro=sensor("imu_gyro"),
             accel=sensor("imu_accel"),
@@ -131,8 +133,13 @@ class CarIndex:
         )
 
 
-def vehicle_parameters(model: mujoco.MjModel | None = None) -> dict[str, float]:
-    """The car's main parameters, read from the compiled model (the MJCF is the one source)."""
+def vehicle_parameters(model: mujoco.MjModel | None = None, drivetrain=None) -> dict[str, float]:
+    """The car's main parameters, read from the compiled model (the MJCF is the one source
+    of its geometry, masses and brakes) and its drivetrain (``vehicle.drivetrain.DRIVETRAIN``
+    unless given: the one source of its engine and driving resistances)."""
+    from biso_cosim.vehicle.drivetrain import DRIVETRAIN
+
+    drivetrain = DRIVETRAIN if drivetrain is None else drivetrain
     if model is None:
         model = car_spec().compile()
     idx = CarIndex.of(model)
@@ -161,7 +168,8 @@ def vehicle_parameters(model: mujoco.MjModel | None = None) -> dict[str, float]:
         "damper_front_ns_per_m": float(model.dof_damping[model.jnt_dofadr[susp["fl"].id]]),
         "damper_rear_ns_per_m": float(model.dof_damping[model.jnt_dofadr[susp["rl"].id]]),
         "max_steer_rad": float(model.actuator_ctrlrange[idx.steer][1]),
-        "max_drive_torque_nm": float(model.actuator_gear[idx.drive][0]),
+        "max_drive_torque_nm": drivetrain.peak_wheel_torque_nm,
+        "wheel_damping_nms_per_rad": float(model.dof_damping[model.jnt_dofadr[model.joint("rl_spin").id]]),
         "max_brake_torque_per_wheel_nm": float(model.actuator_forcerange[idx.brakes[0]][1]),
         # a damper actuator's force is gainprm[2]·ctrl·velocity with gainprm[2] = -kv
         "brake_kv_nms_per_rad": float(-model.actuator_gainprm[idx.brakes[0]][2]),

@@ -18,6 +18,7 @@ from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, TRUTH_LAY
                                          _history_rows, _interpolate_rows, _pack_rows, _track_axle, truth_columns)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
+from biso_cosim.vehicle.drivetrain import DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
 
 __all__ = ["Truth", "VehicleSim"]
@@ -106,7 +107,7 @@ class VehicleSim:
     """The reference car on ``route``'s terrain, driven by the scripted driver."""
 
     def __init__(self, route: Route, *, physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0,
-                 driver_params: DriverParams | None = None):
+                 driver_params: DriverParams | None = None, drivetrain: DrivetrainParams = DRIVETRAIN):
         if not physics_rate_hz > 0.0:
             raise ValueError(f"physics_rate_hz must be > 0, got {physics_rate_hz}")
         if not control_rate_hz > 0.0:
@@ -124,8 +125,13 @@ class VehicleSim:
                                                history_steps=self._history_steps)
         self.data = mujoco.MjData(self.model)
         self.index = CarIndex.of(self.model)
-        params = vehicle_parameters(self.model)
+        params = vehicle_parameters(self.model, drivetrain)
         self.parameters = params
+        self.drivetrain = drivetrain
+        self._drivetrain = drivetrain_coefficients(
+            drivetrain, mass_kg=params["total_mass_kg"], wheel_radius_m=self.index.wheel_radius_m,
+            rear_load_share=params["cg_behind_front_axle_m"] / params["wheelbase_m"],
+            cg_height_over_wheelbase=params["cg_height_m"] / params["wheelbase_m"])
         self.driver = RouteDriver(
             route, wheelbase_m=self.index.wheelbase_m, wheel_radius_m=self.index.wheel_radius_m,
             mass_kg=params["total_mass_kg"], max_drive_torque_nm=params["max_drive_torque_nm"],
@@ -142,7 +148,8 @@ class VehicleSim:
         self._history, self._warnings = self.data.history, self.data.warning.number
         self._ctrl, self._sensordata = self.data.ctrl, self.data.sensordata
         ix = self.index
-        self._actuators = np.array([ix.steer, ix.drive, *ix.brakes], dtype=np.int64)
+        self._actuators = np.array([ix.steer, ix.drive, ix.resistance, *ix.brakes], dtype=np.int64)
+        self._wheel_rates = self.data.sensordata[ix.wheel_rates]  # a view: the current spin rates
         self._sensor_layout = np.array([ix.quat.start, ix.rear_axle_pos.start, ix.rear_axle_vel_b.start,
                                         ix.wheel_rates.start, ix.wheel_rates.stop - ix.wheel_rates.start], dtype=np.int64)
         self._axle_x = int(ix.rear_axle_pos.start)
@@ -187,7 +194,10 @@ class VehicleSim:
 
     # ------------------------------------------------------------------ stepping
     def apply(self, command: DriverCommand) -> None:
-        _apply_controls(self._ctrl, self._actuators, command.steer_rad, command.drive, command.brake)
+        """Write ``command`` into the controls (its drive through the drivetrain at the
+        current wheel speeds)."""
+        _apply_controls(self._ctrl, self._actuators, command.steer_rad, command.drive, command.brake,
+                        self._wheel_rates, self._drivetrain)
 
     def _measure(self) -> tuple[list[float], float, float, float]:
         """What the driver measures, as plain floats: rear-axle position, yaw, forward speed,
@@ -212,7 +222,7 @@ class VehicleSim:
         driver = self.driver
         out = driver._out
         _drive_period(*driver._arrays, driver._params, driver.state.array, self._sensordata, self._sensor_layout,
-                      self._ctrl, self._actuators, out)
+                      self._ctrl, self._actuators, self._drivetrain, out)
         return out
 
     def observe_route(self) -> None:
