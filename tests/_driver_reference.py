@@ -14,7 +14,7 @@ class ReferenceDriver:
         self.path = driver.path
         self.params = driver.params
         for name in ("wheelbase_m", "wheel_radius_m", "mass_kg", "max_drive_torque_nm", "brake_kv",
-                     "max_brake_torque_nm", "max_steer_rad", "dt_s"):
+                     "max_brake_torque_nm", "max_steer_rad", "dt_s", "power_w_per_kg", "drag_per_m", "rolling_mps2"):
             setattr(self, name, getattr(driver, name))
         self._v_free = self.route.speed_free_mps
         self._stops = self.route.stops
@@ -102,7 +102,10 @@ class ReferenceDriver:
         target = direction * min(float(self._v_free[st.index]), math.sqrt(2.0 * decel * room), room / p.stop_creep_s)
         previous = st.speed_cmd_mps
         # the rate limits apply to the magnitude: speeding up at accel, slowing at decel
-        down, up = (decel, accel) if direction > 0 else (accel, decel)
+        # ... speeding up at most at the car's full-throttle acceleration at the command's speed
+        v = abs(previous)
+        faster = min(accel, max(self.power_w_per_kg / max(v, 1.0) - self.drag_per_m * v * v - self.rolling_mps2, 0.0))
+        down, up = (decel, faster) if direction > 0 else (faster, decel)
         st.speed_cmd_mps += min(max(target - previous, -down * dt), up * dt)
         feedforward = (st.speed_cmd_mps - previous) / dt
         error = st.speed_cmd_mps - speed_mps
@@ -114,7 +117,9 @@ class ReferenceDriver:
         if torque * direction >= 0.0:
             drive = torque / self.max_drive_torque_nm
             brake = 0.0
-            saturated = abs(drive) > 1.0
+            # saturated beyond the peak torque or beyond the engine's power at this speed
+            saturated = abs(drive) > 1.0 or abs(torque) > (self.mass_kg * self.wheel_radius_m * self.power_w_per_kg
+                                                           / max(abs(speed_mps), 1.0))
             drive = min(max(drive, -1.0), 1.0)
         else:
             drive = 0.0

@@ -145,3 +145,55 @@ def test_the_mujoco_car_performs_like_its_class():
     assert perf.max_rear_wheel_speed_mps < 1.02 * perf.top_speed_mps
     # the route limits' top speed is the drivetrain's, which the car reaches
     assert perf.top_speed_mps == pytest.approx(car_limits().top_speed_mps, rel=0.02)
+
+
+def _route(waypoints, **driving):
+    from biso_cosim.routes.route import parse_route
+
+    return parse_route({"format": 1, "name": "t", "description": "test", "closed": False,
+                        "driving": {"start_wait_s": 0.0, **driving}, "waypoint": waypoints}, source="t.toml")
+
+
+def test_routes_asking_more_than_the_drivetrain_are_capped_or_warned_naming_the_waypoint():
+    from biso_cosim.routes import RouteWarning, car_limits
+
+    car = car_limits()
+    with pytest.warns(RouteWarning, match=r"waypoint\[1\] reverses at 25 m/s.*top speed in reverse"):
+        route = _route([{"x_m": 0.0, "y_m": 0.0}, {"x_m": 400.0, "y_m": 0.0, "reverse": True},
+                        {"x_m": 0.0, "y_m": 0.0, "reverse": True}], default_speed_mps=25.0)
+    assert route.waypoints[1].speed_mps == pytest.approx(car.reverse_top_speed_mps)
+    assert 14.0 < car.reverse_top_speed_mps < 17.0  # the reverse gear at 6200 rpm
+    with pytest.warns(RouteWarning, match=r"waypoint\[1\]: at its speed of 45 m/s the car accelerates at most 0\.\d\d"):
+        _route([{"x_m": 0.0, "y_m": 0.0}, {"x_m": 100.0, "y_m": 0.0, "speed_mps": 45.0}, {"x_m": 3000.0, "y_m": 0.0}],
+               accel_mps2=2.0)
+    with pytest.warns(RouteWarning, match=r"waypoint\[0\]\.speed_mps = 500 m/s.*top speed \(54\.7 m/s\)"):
+        _route([{"x_m": 0.0, "y_m": 0.0, "speed_mps": 500.0}, {"x_m": 3000.0, "y_m": 0.0}])
+    # the car's full-throttle acceleration: traction-limited from rest, nothing left at the top speed
+    assert car.full_throttle_accel_mps2(0.0) == pytest.approx(4.3, abs=0.1)
+    assert car.full_throttle_accel_mps2(car.top_speed_mps) == pytest.approx(0.0, abs=0.01)
+
+
+def test_a_fast_route_is_driven_at_what_the_engine_gives():
+    """50 m/s asked at 2 m/s²: the driver's command ramps at the car's full-throttle
+    acceleration, so the car follows it (no wound-up overshoot) and stays on the road."""
+    import warnings
+
+    from biso_cosim.vehicle.sim import VehicleSim
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        route = _route([{"x_m": 0.0, "y_m": 0.0}, {"x_m": 3000.0, "y_m": 0.0}], default_speed_mps=50.0,
+                       accel_mps2=2.0, decel_mps2=2.0)
+    sim = VehicleSim(route)
+    speeds, commands, cross = [], [], []
+    for _ in range(int(60 * sim.control_rate_hz)):
+        sim.drive()
+        truth = sim.step()
+        speeds.append(truth.speed_mps[-1])
+        commands.append(sim.driver.state.speed_cmd_mps)
+        cross.append(sim.driver.state.cross_track_m)
+    speeds, commands = np.array(speeds), np.array(commands)
+    assert speeds.max() < 50.0 * 1.02
+    assert np.max(commands - speeds) < 2.0  # the command never runs away from the car
+    assert np.max(np.abs(cross)) < 0.5
+    assert speeds.max() > 45.0

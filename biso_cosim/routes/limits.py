@@ -18,6 +18,8 @@ import math
 from dataclasses import dataclass, field
 from functools import cache
 
+import numpy as np
+
 __all__ = ["CarLimits", "car_limits", "USABLE_FRICTION", "STANDARD_GRAVITY_MPS2", "MAX_UNROUNDED_TURN_RAD"]
 
 STANDARD_GRAVITY_MPS2 = 9.80665
@@ -47,6 +49,16 @@ class CarLimits:
     grade: float
     """Steepest grade (rise over run) the car can climb from rest on the driven axle's traction."""
     sources: dict = field(default_factory=dict, compare=False)
+    reverse_top_speed_mps: float = math.inf
+    """Highest speed in reverse: the reverse gear at the rev limit."""
+    full_throttle_mps_mps2: tuple = field(default=((0.0, math.inf), (math.inf, math.inf)), compare=False)
+    """(speeds, m/s; accelerations, m/s²): the car's full-throttle acceleration on a flat road
+    at those speeds (drivetrain against the driving resistances; linear in between)."""
+
+    def full_throttle_accel_mps2(self, speed_mps: float) -> float:
+        """The car's largest acceleration at ``speed_mps`` on a flat road, forward, m/s²."""
+        speeds, accels = self.full_throttle_mps_mps2
+        return float(np.interp(speed_mps, speeds, accels))
 
     def table(self) -> str:
         """The limits as a Markdown table with their sources (docs/routes.md shows it)."""
@@ -61,7 +73,8 @@ class CarLimits:
 @cache
 def car_limits() -> CarLimits:
     """The limits of the library's car (biso_cosim/vehicle/car.xml), read from its compiled model."""
-    from biso_cosim.vehicle.drivetrain import DRIVETRAIN, top_speed, traction_torque_nm
+    from biso_cosim.vehicle.drivetrain import (DRIVETRAIN, RPM_PER_RAD_S, resistance_force, top_speed,
+                                               traction_torque_nm, wheel_torque)
     from biso_cosim.vehicle.model import car_spec, vehicle_parameters
 
     model = car_spec().compile()
@@ -77,8 +90,14 @@ def car_limits() -> CarLimits:
     tc = traction_torque_nm(DRIVETRAIN, mass_kg=m, wheel_radius_m=radius, rear_load_share=rear_share,
                             cg_height_over_wheelbase=h / wheelbase)
     torque = min(p["max_drive_torque_nm"], tc) / radius / m
-    v_top, gear = top_speed(DRIVETRAIN, mass_kg=m, wheel_radius_m=radius,
-                            wheel_damping_nms=p["wheel_damping_nms_per_rad"])
+    damping = p["wheel_damping_nms_per_rad"]
+    v_top, gear = top_speed(DRIVETRAIN, mass_kg=m, wheel_radius_m=radius, wheel_damping_nms=damping)
+    speeds = np.linspace(0.0, v_top, 200)
+    accels = np.array([(min(wheel_torque(1.0, v / radius, v / radius, DRIVETRAIN, wheel_radius_m=radius)[0], tc) / radius
+                        + resistance_force(v, DRIVETRAIN, mass_kg=m) - 4.0 * damping * v / radius ** 2) / m
+                       for v in speeds])
+    reverse_top = (DRIVETRAIN.rev_limit_rpm / RPM_PER_RAD_S / (DRIVETRAIN.reverse_ratio * DRIVETRAIN.final_drive)
+                   * radius)
     brakes = 4.0 * p["max_brake_torque_per_wheel_nm"] / p["wheel_radius_m"] / m
     # climbing from rest on a grade θ: μ·(cos θ·b/L + sin θ·h/L) = sin θ
     grade = mu * rear_share / (1.0 - mu * h / wheelbase)
@@ -98,4 +117,6 @@ def car_limits() -> CarLimits:
     }
     return CarLimits(top_speed_mps=v_top, accel_mps2=min(traction, torque),
                      decel_mps2=min(mu * g, brakes), lateral_accel_mps2=mu * g,
-                     turning_radius_m=wheelbase / math.tan(p["max_steer_rad"]), grade=grade, sources=sources)
+                     turning_radius_m=wheelbase / math.tan(p["max_steer_rad"]), grade=grade, sources=sources,
+                     reverse_top_speed_mps=reverse_top,
+                     full_throttle_mps_mps2=(tuple(speeds.tolist()), tuple(np.maximum(accels, 0.0).tolist())))

@@ -502,6 +502,30 @@ def _within_car_limits(driving: DrivingLimits, waypoints: list[Waypoint], closed
         warnings.warn(f"{where}: waypoint[{i}].speed_mps = {waypoints[i].speed_mps:g} m/s{more} is beyond the car's "
                       f"top speed ({car.top_speed_mps:.1f} m/s); capped to it", RouteWarning, stacklevel=3)
         waypoints = [replace(wp, speed_mps=car.top_speed_mps) if k in fast else wp for k, wp in enumerate(waypoints)]
+    # reverse legs: the reverse gear's top speed
+    leg = [driving.default_speed_mps if wp.speed_mps is None else wp.speed_mps for wp in waypoints]
+    backwards = [i for i, wp in enumerate(waypoints) if wp.reverse and leg[i] > car.reverse_top_speed_mps]
+    if backwards:
+        i = backwards[0]
+        more = f" (and {len(backwards) - 1} more waypoint(s))" if len(backwards) > 1 else ""
+        warnings.warn(f"{where}: waypoint[{i}] reverses at {leg[i]:g} m/s{more}, beyond the car's top speed in "
+                      f"reverse ({car.reverse_top_speed_mps:.1f} m/s, the reverse gear at the rev limit); capped to it",
+                      RouteWarning, stacklevel=3)
+        waypoints = [replace(wp, speed_mps=car.reverse_top_speed_mps) if k in backwards else wp
+                     for k, wp in enumerate(waypoints)]
+        leg = [car.reverse_top_speed_mps if k in backwards else v for k, v in enumerate(leg)]
+    # the route's acceleration near each leg's speed: more than the engine's power gives there
+    # and the car reaches the speed later than the profile (the driver's speed command ramps
+    # at what the car can do, see vehicle.driver)
+    slow = [i for i, wp in enumerate(waypoints)
+            if not wp.reverse and driving.accel_mps2 > car.full_throttle_accel_mps2(leg[i])]
+    if slow:
+        i = slow[0]
+        more = f" (and {len(slow) - 1} more waypoint(s))" if len(slow) > 1 else ""
+        warnings.warn(f"{where}: waypoint[{i}]: at its speed of {leg[i]:g} m/s{more} the car accelerates at most "
+                      f"{car.full_throttle_accel_mps2(leg[i]):.2f} m/s² at full throttle, less than driving.accel_mps2 = "
+                      f"{driving.accel_mps2:g}: it reaches the speed later than the profile says", RouteWarning,
+                      stacklevel=3)
     return driving, waypoints
 
 

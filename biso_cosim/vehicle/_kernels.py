@@ -118,8 +118,8 @@ STATE_SIZE = 12
 # params[...]
 (P_LMIN, P_TLA, P_LMAX, P_STEER_RATE, P_KP, P_KI, P_STOP_DIST, P_STOP_SPEED, P_CREEP, P_HOLD_RAMP,
  P_WHEELBASE, P_MAX_STEER, P_MASS, P_RADIUS, P_MAX_DRIVE, P_BRAKE_KV, P_MAX_BRAKE, P_DT, P_DECEL, P_ACCEL,
- P_WAIT, P_LENGTH) = range(22)
-PARAMS_SIZE = 22
+ P_WAIT, P_LENGTH, P_POWER, P_DRAG_K, P_ROLL_A) = range(25)
+PARAMS_SIZE = 25
 
 
 # _history_rows' outcomes
@@ -291,10 +291,13 @@ def _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index,
     room = max(to_stop, 0.0)
     target = d * min(v_free[index], math.sqrt(2.0 * p[P_DECEL] * room), room / p[P_CREEP])
     previous = state[S_VCMD]
+    # speeding up at accel, at most at the car's full-throttle acceleration at the command's speed
+    v_abs = abs(previous)
+    faster = min(p[P_ACCEL], max(p[P_POWER] / max(v_abs, 1.0) - p[P_DRAG_K] * v_abs * v_abs - p[P_ROLL_A], 0.0))
     if d > 0:  # the rate limits apply to the magnitude: speeding up at accel, slowing at decel
-        down, up = p[P_DECEL], p[P_ACCEL]
+        down, up = p[P_DECEL], faster
     else:
-        down, up = p[P_ACCEL], p[P_DECEL]
+        down, up = faster, p[P_DECEL]
     state[S_VCMD] += min(max(target - previous, -down * dt), up * dt)
     feedforward = (state[S_VCMD] - previous) / dt
     error = state[S_VCMD] - speed
@@ -305,7 +308,8 @@ def _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index,
     if torque * d >= 0.0:
         drive = torque / p[P_MAX_DRIVE]
         brake = 0.0
-        saturated = abs(drive) > 1.0
+        # beyond the peak torque, or beyond what the engine's power gives at this speed
+        saturated = abs(drive) > 1.0 or abs(torque) > p[P_MASS] * p[P_RADIUS] * p[P_POWER] / max(abs(speed), 1.0)
         drive = min(max(drive, -1.0), 1.0)
     else:
         drive = 0.0

@@ -12,7 +12,9 @@ period:
 * speed: the target is the route's free-flow profile, capped at distance d before the next
   stop by ``min(sqrt(2·a_dec·d), d/τ_stop)`` (constant deceleration, then an exponential
   creep over the last metres, as a driver eases off the brake) and rate limited by the
-  profile's acceleration limits; a PI controller
+  profile's acceleration limits, speeding up at most at the car's full-throttle
+  acceleration ``a(v) = P/(m·max(v, 1 m/s)) − k·v² − g·c_rr`` (engine power at the wheels,
+  drag, rolling resistance: the drivetrain's figures); a PI controller
   on the speed error plus the feed-forward of the target's rate gives an acceleration
   command, turned into drive torque at the rear wheels or brake torque at all four;
 * start: the car stands with its brakes on for the route's ``start_wait_s`` (an initial
@@ -108,6 +110,11 @@ for _name, (_slot, _kind) in _STATE_FIELDS.items():
 class RouteDriver:
     """Drives a car along ``route``; ``command()`` once per control period of ``dt_s``.
 
+    ``power_w_per_kg``, ``drag_per_m`` and ``rolling_mps2`` (P/m, ½ρc_wA/m, g·c_rr; none by
+    default) bound the speed command's ramp by the car's full-throttle acceleration, and the
+    speed integral stops (anti-windup) where the drive torque asked exceeds what the power
+    gives at the speed, m·r·P/(m·max(v, 1 m/s)), as it does beyond the peak torque.
+
     The work of a period is one numba kernel (``biso_cosim.vehicle._kernels._driver_command``);
     ``tests/_driver_reference.py`` is the same method written plainly, and the tests compare
     them command by command.
@@ -115,7 +122,8 @@ class RouteDriver:
 
     def __init__(self, route: Route, *, wheelbase_m: float, wheel_radius_m: float, mass_kg: float,
                  max_drive_torque_nm: float, brake_kv: float, max_brake_torque_nm: float,
-                 max_steer_rad: float, dt_s: float, params: DriverParams | None = None):
+                 max_steer_rad: float, dt_s: float, params: DriverParams | None = None,
+                 power_w_per_kg: float = math.inf, drag_per_m: float = 0.0, rolling_mps2: float = 0.0):
         self.route = route
         self.path = route.path
         self.params = params or DriverParams()
@@ -130,6 +138,7 @@ class RouteDriver:
         self.max_brake_torque_nm = max_brake_torque_nm
         self.max_steer_rad = max_steer_rad
         self.dt_s = dt_s
+        self.power_w_per_kg, self.drag_per_m, self.rolling_mps2 = power_w_per_kg, drag_per_m, rolling_mps2
         p, d = self.params, route.driving
         c = np.zeros(K.PARAMS_SIZE)
         c[K.P_LMIN], c[K.P_TLA], c[K.P_LMAX] = p.lookahead_min_m, p.lookahead_time_s, p.lookahead_max_m
@@ -140,6 +149,7 @@ class RouteDriver:
         c[K.P_MAX_DRIVE], c[K.P_BRAKE_KV], c[K.P_MAX_BRAKE] = max_drive_torque_nm, brake_kv, max_brake_torque_nm
         c[K.P_DT], c[K.P_DECEL], c[K.P_ACCEL], c[K.P_WAIT] = dt_s, d.decel_mps2, d.accel_mps2, d.start_wait_s
         c[K.P_LENGTH] = self.path.length_m
+        c[K.P_POWER], c[K.P_DRAG_K], c[K.P_ROLL_A] = power_w_per_kg, drag_per_m, rolling_mps2
         self._params = c
         path, stops = self.path, route.stops
         self._arrays = (path.x_m, path.y_m, path.s_m, path.heading_rad, route.speed_free_mps,

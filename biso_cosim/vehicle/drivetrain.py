@@ -285,10 +285,13 @@ def _drivetrain_controls(c, drive, wheel_rates):
 def wheel_torque(drive: float, omega_rear_rad_s: float, omega_front_rad_s: float,
                  params: DrivetrainParams = DRIVETRAIN, *, wheel_radius_m: float = 0.316) -> tuple[float, int]:
     """(torque on the rear differential, N·m; gear: 1.. forward, -1 reverse, 0 none) for a
-    drive command in [-1, 1] at the mean rear and front wheel speeds."""
+    drive command in [-1, 1] at the mean rear and front wheel speeds: the engine and gearbox
+    with the slip cut of the traction control, without its traction limit (which depends on
+    the car: ``traction_torque_nm``)."""
     if not -1.0 <= drive <= 1.0:
         raise ValueError(f"drive must be in [-1, 1], got {drive!r}")
     c = drivetrain_coefficients(params, mass_kg=1.0, wheel_radius_m=wheel_radius_m)
+    c[C_TRACTION] = math.inf
     torque, gear = _wheel_torque(c, float(drive), float(omega_rear_rad_s), float(omega_front_rad_s))
     return float(torque), int(gear)
 

@@ -18,7 +18,7 @@ from biso_cosim.vehicle._kernels import (HISTORY_READ, HISTORY_WARNED, TRUTH_LAY
                                          _history_rows, _interpolate_rows, _pack_rows, _track_axle, truth_columns)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
-from biso_cosim.vehicle.drivetrain import DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
+from biso_cosim.vehicle.drivetrain import AIR_DENSITY_KG_M3, DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
 
 __all__ = ["Truth", "VehicleSim"]
@@ -137,7 +137,10 @@ class VehicleSim:
             mass_kg=params["total_mass_kg"], max_drive_torque_nm=params["max_drive_torque_nm"],
             brake_kv=params["brake_kv_nms_per_rad"],
             max_brake_torque_nm=params["max_brake_torque_per_wheel_nm"],
-            max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params)
+            max_steer_rad=params["max_steer_rad"], dt_s=1.0 / control_rate_hz, params=driver_params,
+            power_w_per_kg=drivetrain.efficiency * drivetrain.max_power_w / params["total_mass_kg"],
+            drag_per_m=0.5 * AIR_DENSITY_KG_M3 * drivetrain.drag_area_m2 / params["total_mass_kg"],
+            rolling_mps2=drivetrain.rolling_resistance * 9.80665)
         # a control period is one mj_step(m, d, nstep) call; the sensors' history rings hold
         # its sensordata rows (no Python per physics step). Arrays and views made once:
         m = self.model
