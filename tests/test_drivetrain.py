@@ -197,3 +197,10 @@ def test_a_fast_route_is_driven_at_what_the_engine_gives():
     assert np.max(commands - speeds) < 2.0  # the command never runs away from the car
     assert np.max(np.abs(cross)) < 0.5
     assert speeds.max() > 45.0
+
+
+def test_docs_vehicle_shows_the_parameters_in_force():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "vehicle.md").read_text()
+    assert DrivetrainParams.table() in text, "run: biso-cosim vehicle params, and paste it into docs/vehicle.md"

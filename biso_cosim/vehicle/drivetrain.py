@@ -146,7 +146,9 @@ class DrivetrainParams:
 DRIVETRAIN = DrivetrainParams()
 """The reference car's drivetrain."""
 
-# drivetrain_coefficients' layout (the kernels' one argument)
+# drivetrain_coefficients' layout (the kernels' one argument). numba's on-disk cache of a
+# kernel that calls these (vehicle/_kernels.py, envs/_kernels.py) is keyed on its own file
+# only: after changing the layout or a kernel here, delete the __pycache__/*.nbi of those.
 (C_PEAK, C_PMAX, C_REV, C_LAUNCH, C_EFF, C_FINAL, C_REVERSE, C_SLIP_TARGET, C_SLIP_CUT, C_SLIP_FLOOR,
  C_DRAG, C_ROLL, C_ROLL_SPEED, C_RADIUS, C_TRACTION, C_NGEARS, C_NCURVE) = range(17)
 C_TABLES = 17
