@@ -11,7 +11,8 @@ does each step):
 * a whole route (loop600 by default) fed from a recorded truth: the native plug-in in the C
   master against the numba path on the same truth rows (the Earth field, MPU9250.simulate
   and the estimator, each on the whole array); goal within 1.5× of the numba path;
-* BisoVehicle.fmu (Python, pythonfmu) over the route in FMPy against CoSimulation.run.
+* BisoVehicle-fmi2.fmu (Python-based: our C shell embedding CPython) over the route in FMPy
+  against CoSimulation.run.
 
     python benchmarks/fmu_overhead.py                       # loop600
     python benchmarks/fmu_overhead.py --route slalom --steps 20000 --no-vehicle
@@ -149,7 +150,7 @@ def route(paths, master, name: str, tmp: Path, with_vehicle: bool) -> None:
           f"(goal ≤ 1.5×: {'met' if native <= 1.5 * numba else 'NOT met'})")
     if with_vehicle:
         outputs = ([f"truth.q_wb.{c}" for c in QUAT] + [f"gyro_b.{c}" for c in AXES] + EST_OUT + ["error.total"])
-        with FmuInstance(paths["BisoVehicle"], "bench", start_values={"route": name, "estimator": "biso"},
+        with FmuInstance(paths["BisoVehicle-fmi2"], "bench", start_values={"route": name, "estimator": "biso"},
                          stop_time=sim.duration_s) as fmu:
             vr_out = [fmu.variables[k].valueReference for k in outputs]
             raw = fmu.fmu
@@ -159,7 +160,7 @@ def route(paths, master, name: str, tmp: Path, with_vehicle: bool) -> None:
                 raw.getReal(vr_out)
                 tt += 0.02
             fmu_s = time.perf_counter() - t0
-        print(f"BisoVehicle.fmu (Python) over {name} in FMPy {fmu_s:.1f} s, CoSimulation.run {run_s:.1f} s: "
+        print(f"BisoVehicle-fmi2.fmu (Python-based) over {name} in FMPy {fmu_s:.1f} s, CoSimulation.run {run_s:.1f} s: "
               f"{fmu_s / run_s:.2f}×")
 
 
@@ -167,7 +168,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000, help="steps of the per-step measurements (default 20000)")
     parser.add_argument("--route", default="loop600", help="route of the whole-run comparison (default loop600)")
-    parser.add_argument("--no-vehicle", action="store_true", help="leave out BisoVehicle.fmu (Python)")
+    parser.add_argument("--no-vehicle", action="store_true", help="leave out BisoVehicle (Python-based)")
     args = parser.parse_args()
     from biso_cosim.fmu.build import built_fmus
 
