@@ -1,4 +1,4 @@
-"""The Python side of the C shell that embeds CPython in ``BisoVehicle.fmu``
+"""The Python side of the C shell that embeds CPython in ``BisoVehicle``
 (``native/src/python``): C calls ``instantiate`` once per FMI instance and then the
 methods of the `Bridge` it returns, with the FMI call's arguments as numbers (value
 references and values by address). A method returns an FMI status (or a handle or size)

@@ -1,5 +1,5 @@
 """A co-simulation slave in Python, addressed by value reference, with FMI's modes, statuses
-and refusals: the model half of ``BisoVehicle.fmu``, whose C shell
+and refusals: the model half of ``BisoVehicle``, whose C shell
 (``native/src/python``) forwards every FMI call to it through ``_embedded.py``.
 
 As the standard reads them (and as the native FMUs do), every refusal is status *error*

@@ -1,4 +1,5 @@
-"""``BisoVehicle.fmu``: the whole co-simulation (``biso_cosim.cosim.CoSimulation``) as a slave.
+"""``BisoVehicle`` (``-fmi2.fmu``, ``-fmi3.fmu``): the whole co-simulation
+(``biso_cosim.cosim.CoSimulation``) as a slave.
 
 The MuJoCo car drives a route (the scripted driver, or the inputs ``steer``, ``drive``,
 ``brake`` with ``external_driver``); the virtual MPU-9250 and one estimator run in the loop,

@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(rec['vehicle.sample_time'])} steps of 20 ms: BisoVehicle -> BisoImuPlugin ({args.route}, "
           f"{args.estimator}); plug-in estimate RMS error roll {rms['roll']:.3f}°, pitch {rms['pitch']:.3f}°, "
           f"heading {rms['heading']:.3f}°")
-    print(f"wrote {_plot(rec, Path(args.out), f'{args.route}: BisoVehicle.fmu truth -> BisoImuPlugin.fmu (FMPy)')}")
+    print(f"wrote {_plot(rec, Path(args.out), f'{args.route}: BisoVehicle-fmi2.fmu truth -> BisoImuPlugin-fmi2.fmu (FMPy)')}")
     return 0
 
 
