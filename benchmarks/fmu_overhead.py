@@ -16,12 +16,16 @@ does each step):
 
     python benchmarks/fmu_overhead.py                       # loop600
     python benchmarks/fmu_overhead.py --route slalom --steps 20000 --no-vehicle
+
+With valgrind installed, the estimator's line also gives the instructions the FMU executes
+per step (callgrind), a figure the machine's load does not change.
 """
 
 from __future__ import annotations
 
 import argparse
 import re
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -64,6 +68,31 @@ def _master_per_step(master, path, step, rows: dict, start: dict, workdir: Path)
     return float(re.search(r"time per DoStep: ([0-9.]+) ns", run.log).group(1)) * 1e-9
 
 
+_PER_STEP_CALLS = {"fmi2": ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"),
+                   "fmi3": ("fmi3SetFloat64", "fmi3DoStep", "fmi3GetFloat64")}
+
+
+def _instructions_per_step(master, path, version: str, step: float, rows: dict, start: dict,
+                           workdir: Path) -> float | None:
+    """Instructions the FMU executes per step (its SetReal, DoStep and GetReal, the calls a
+    master makes each step), counted by valgrind's callgrind: the difference of two runs of
+    1000 and 2000 steps over 1000 steps, so that instantiation and initialization drop out.
+    A figure independent of the machine's load; None without valgrind."""
+    if shutil.which("valgrind") is None:
+        return None
+    totals = []
+    for n in (1000, 2000):
+        out = workdir / f"callgrind.{version}.{n}"
+        toggles = [f"--toggle-collect={f}" for f in _PER_STEP_CALLS[version]]
+        run = run_native(master, path, step, n, start=start, input_rows={k: v[:n] for k, v in rows.items()},
+                         outputs=EST_OUT, options=["--quiet"], workdir=workdir / f"cg{n}", timeout=1800,
+                         prefix=["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *toggles])
+        if run.returncode:
+            raise RuntimeError(run.log[-2000:])
+        totals.append(int(re.search(r"^summary: (\d+)", out.read_text(), re.M).group(1)))
+    return (totals[1] - totals[0]) / 1000.0
+
+
 def estimator(paths, master, steps: int, tmp: Path) -> None:
     from biso_cosim.estimators import make_estimator
 
@@ -90,8 +119,12 @@ def estimator(paths, master, steps: int, tmp: Path) -> None:
         c = _master_per_step(master, paths[f"BisoEstimator-{version}"], 0.005, rows, start, tmp / f"e{version}")
         with FmuInstance(paths[f"BisoEstimator-{version}"], "bench", start_values=start) as fmu:
             f = _fmpy_loop(fmu, inputs, data, EST_OUT, 0.005)
+        instructions = _instructions_per_step(master, paths[f"BisoEstimator-{version}"], version, 0.005, rows, start,
+                                              tmp / f"i{version}")
+        counted = ("" if instructions is None else
+                   f"; callgrind: {instructions:.0f} instructions per step (SetReal + DoStep + GetReal)")
         print(f"  {version}: C master {c * 1e6:6.3f} µs per DoStep ({c / batch:5.1f}× numba batch; goal ≤ 1 µs: "
-              f"{'met' if c <= 1e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step")
+              f"{'met' if c <= 1e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step{counted}")
 
 
 def plugin(paths, master, steps: int, tmp: Path) -> None:

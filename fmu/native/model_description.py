@@ -55,8 +55,10 @@ DEFAULT_EXPERIMENT = {"BisoEstimator": (10.0, 0.005), "BisoImuPlugin": (10.0, 0.
 _TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "String": 3}
 _CAUSALITY = {"parameter": 0, "input": 1, "output": 2}
 _VARIABILITY = {"fixed": 0, "tunable": 1, "discrete": 2, "continuous": 3}
-# key heads with a generic meaning in the C core (fmu_core.h BISO_ROLE_*); others are the model's
-_ROLES = {"param": 1, "given": 2, "register": 3, "estimator": 4}
+# key heads with a generic meaning in the C core (fmu_core.h BISO_ROLE_*); others are the model's.
+# "euler_est" (estimate.roll, pitch, yaw, heading) are derived outputs: the model computes them
+# from its other outputs when a host first reads one after a step (model_derive_outputs)
+_ROLES = {"param": 1, "given": 2, "register": 3, "estimator": 4, "euler_est": 5}
 _PREFIX = {"Real": "R", "Integer": "I", "Boolean": "B", "String": "S"}
 STRING_LENGTH = 256
 
