@@ -384,3 +384,25 @@ def test_native_fmus_run_in_a_python_without_biso_cosim(fmus, bare_python, tmp_p
         want = ([ref_est[0], ref_est[3]] if "Estimator" in key
                 else [ref_plug[OUTPUTS.index("estimate.q_wb.w")], ref_plug[OUTPUTS.index("estimate.q_wb.z")]])
         assert value == want, key
+
+
+def test_vehicle_runs_in_a_python_without_biso_cosim(bare_python, tmp_path):
+    """BisoVehicle in FMPy on a Python that cannot import biso_cosim (an empty environment):
+    the shell adds the building environment's site-packages (resources/python.txt) and the
+    run equals the one in this process; the process exits cleanly."""
+    path = built_fmus(("BisoVehicle",))["BisoVehicle-fmi2"]
+    outputs = ["truth.speed", "estimate.q_wb.w", "estimate.q_wb.z"]
+    script = tmp_path / "vehicle.py"
+    script.write_text(
+        "import json, sys\n"
+        "from fmpy import simulate_fmu\n"
+        "r = simulate_fmu(sys.argv[1], stop_time=0.4, step_size=0.02, start_values={'route': 'slalom'},\n"
+        f"                 output={outputs!r})\n"
+        "print('RESULT ' + json.dumps([list(map(float, row)) for row in r]))\n")
+    done = subprocess.run([str(bare_python), str(script), str(path)], capture_output=True, text=True,
+                          env={"PATH": os.defpath}, timeout=900, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT "))[7:])
+    with FmuInstance(path, "here", start_values={"route": "slalom"}) as fmu:
+        ref = [fmu.step(0.02) and fmu.get(outputs) for _ in range(20)]
+    assert [row[1:] for row in rows[1:]] == ref
