@@ -299,3 +299,39 @@ def test_docs_tables_are_generated_from_the_variables():
     doc = Path(__file__).resolve().parents[1] / "docs" / "fmu.md"
     text = doc.read_text("utf-8")
     assert fill_docs(text) == text, "docs/fmu.md is stale: biso-cosim fmu docs docs/fmu.md"
+
+
+def _with_python_config(path, folder, edit):
+    """A copy of an FMU whose resources/python.txt is ``edit(text)``."""
+    out = folder / path.name
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.namelist():
+            data = src.read(item)
+            dst.writestr(item, edit(data.decode()).encode() if item == "resources/python.txt" else data)
+    return out
+
+
+def test_native_host_python_library_choice_and_its_errors(fmus, tmp_path):
+    """In a native host the shell loads the libpython named in resources/python.txt, or the one
+    BISO_COSIM_LIBPYTHON names; without one (a static-only Python built the FMU), or with a
+    Python of another version, instantiation fails with the reason logged."""
+    import os
+    import re
+
+    from biso_cosim.fmu.demos.native import compile_master, run_native
+    from biso_cosim.fmu.native.python_shell import shared_libpython
+
+    master = compile_master(tmp_path)
+    path = fmus["BisoVehicle-fmi2"]
+    env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}
+    (tmp_path / "none").mkdir()
+    no_library = _with_python_config(path, tmp_path / "none", lambda t: re.sub(r"libpython=.*", "libpython=", t))
+    run = run_native(master, no_library, 0.02, 2, workdir=tmp_path / "w1", env=env)
+    assert run.returncode != 0 and "has no shared library (built without --enable-shared)" in run.log, run.log
+    run = run_native(master, no_library, 0.02, 2, workdir=tmp_path / "w2",
+                     env={**env, "BISO_COSIM_LIBPYTHON": str(shared_libpython())})
+    assert run.returncode == 0, run.log[-2000:]
+    (tmp_path / "old").mkdir()
+    other = _with_python_config(path, tmp_path / "old", lambda t: re.sub(r"version=.*", "version=2.7.", t))
+    run = run_native(master, other, 0.02, 2, workdir=tmp_path / "w3", env=env)
+    assert run.returncode != 0 and "this FMU was built for Python 2.7.; the Python in this process is 3." in run.log
