@@ -11,16 +11,21 @@ does each step):
 * a whole route (loop600 by default) fed from a recorded truth: the native plug-in in the C
   master against the numba path on the same truth rows (the Earth field, MPU9250.simulate
   and the estimator, each on the whole array); goal within 1.5× of the numba path;
-* BisoVehicle.fmu (Python, pythonfmu) over the route in FMPy against CoSimulation.run.
+* BisoVehicle-fmi2.fmu (Python-based: our C shell embedding CPython) over the route in FMPy
+  against CoSimulation.run.
 
     python benchmarks/fmu_overhead.py                       # loop600
     python benchmarks/fmu_overhead.py --route slalom --steps 20000 --no-vehicle
+
+With valgrind installed, the estimator's line also gives the instructions the FMU executes
+per step (callgrind), a figure the machine's load does not change.
 """
 
 from __future__ import annotations
 
 import argparse
 import re
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -63,6 +68,31 @@ def _master_per_step(master, path, step, rows: dict, start: dict, workdir: Path)
     return float(re.search(r"time per DoStep: ([0-9.]+) ns", run.log).group(1)) * 1e-9
 
 
+_PER_STEP_CALLS = {"fmi2": ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"),
+                   "fmi3": ("fmi3SetFloat64", "fmi3DoStep", "fmi3GetFloat64")}
+
+
+def _instructions_per_step(master, path, version: str, step: float, rows: dict, start: dict,
+                           workdir: Path) -> float | None:
+    """Instructions the FMU executes per step (its SetReal, DoStep and GetReal, the calls a
+    master makes each step), counted by valgrind's callgrind: the difference of two runs of
+    1000 and 2000 steps over 1000 steps, so that instantiation and initialization drop out.
+    A figure independent of the machine's load; None without valgrind."""
+    if shutil.which("valgrind") is None:
+        return None
+    totals = []
+    for n in (1000, 2000):
+        out = workdir / f"callgrind.{version}.{n}"
+        toggles = [f"--toggle-collect={f}" for f in _PER_STEP_CALLS[version]]
+        run = run_native(master, path, step, n, start=start, input_rows={k: v[:n] for k, v in rows.items()},
+                         outputs=EST_OUT, options=["--quiet"], workdir=workdir / f"cg{n}", timeout=1800,
+                         prefix=["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *toggles])
+        if run.returncode:
+            raise RuntimeError(run.log[-2000:])
+        totals.append(int(re.search(r"^summary: (\d+)", out.read_text(), re.M).group(1)))
+    return (totals[1] - totals[0]) / 1000.0
+
+
 def estimator(paths, master, steps: int, tmp: Path) -> None:
     from biso_cosim.estimators import make_estimator
 
@@ -89,8 +119,12 @@ def estimator(paths, master, steps: int, tmp: Path) -> None:
         c = _master_per_step(master, paths[f"BisoEstimator-{version}"], 0.005, rows, start, tmp / f"e{version}")
         with FmuInstance(paths[f"BisoEstimator-{version}"], "bench", start_values=start) as fmu:
             f = _fmpy_loop(fmu, inputs, data, EST_OUT, 0.005)
+        instructions = _instructions_per_step(master, paths[f"BisoEstimator-{version}"], version, 0.005, rows, start,
+                                              tmp / f"i{version}")
+        counted = ("" if instructions is None else
+                   f"; callgrind: {instructions:.0f} instructions per step (SetReal + DoStep + GetReal)")
         print(f"  {version}: C master {c * 1e6:6.3f} µs per DoStep ({c / batch:5.1f}× numba batch; goal ≤ 1 µs: "
-              f"{'met' if c <= 1e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step")
+              f"{'met' if c <= 1e-6 else 'NOT met'}), FMPy {f * 1e6:6.1f} µs per step{counted}")
 
 
 def plugin(paths, master, steps: int, tmp: Path) -> None:
@@ -149,7 +183,7 @@ def route(paths, master, name: str, tmp: Path, with_vehicle: bool) -> None:
           f"(goal ≤ 1.5×: {'met' if native <= 1.5 * numba else 'NOT met'})")
     if with_vehicle:
         outputs = ([f"truth.q_wb.{c}" for c in QUAT] + [f"gyro_b.{c}" for c in AXES] + EST_OUT + ["error.total"])
-        with FmuInstance(paths["BisoVehicle"], "bench", start_values={"route": name, "estimator": "biso"},
+        with FmuInstance(paths["BisoVehicle-fmi2"], "bench", start_values={"route": name, "estimator": "biso"},
                          stop_time=sim.duration_s) as fmu:
             vr_out = [fmu.variables[k].valueReference for k in outputs]
             raw = fmu.fmu
@@ -159,7 +193,7 @@ def route(paths, master, name: str, tmp: Path, with_vehicle: bool) -> None:
                 raw.getReal(vr_out)
                 tt += 0.02
             fmu_s = time.perf_counter() - t0
-        print(f"BisoVehicle.fmu (Python) over {name} in FMPy {fmu_s:.1f} s, CoSimulation.run {run_s:.1f} s: "
+        print(f"BisoVehicle-fmi2.fmu (Python-based) over {name} in FMPy {fmu_s:.1f} s, CoSimulation.run {run_s:.1f} s: "
               f"{fmu_s / run_s:.2f}×")
 
 
@@ -167,7 +201,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000, help="steps of the per-step measurements (default 20000)")
     parser.add_argument("--route", default="loop600", help="route of the whole-run comparison (default loop600)")
-    parser.add_argument("--no-vehicle", action="store_true", help="leave out BisoVehicle.fmu (Python)")
+    parser.add_argument("--no-vehicle", action="store_true", help="leave out BisoVehicle (Python-based)")
     args = parser.parse_args()
     from biso_cosim.fmu.build import built_fmus
 

@@ -5,8 +5,10 @@
 * ``BisoImuPlugin-fmi2.fmu`` / ``-fmi3.fmu`` (native C, no Python): the virtual MPU-9250 and
   an estimator for another simulator's vehicle: true motion in, readings, raw registers,
   estimate and its error out;
-* ``BisoVehicle.fmu`` (FMI 2.0, Python-based: it runs MuJoCo): the whole co-simulation, as
-  ``biso-cosim run`` (``vehicle.py``).
+* ``BisoVehicle-fmi2.fmu`` / ``-fmi3.fmu`` (Python-based: it runs MuJoCo): the whole
+  co-simulation, as ``biso-cosim run`` (``vehicle.py``); its binary is our C shell that embeds
+  CPython (``native/src/python``, ``native/python_shell.py``) and calls the slave through
+  ``_embedded.py``.
 
 Their variables come from the package's parameter records (``variables.py``); the native
 FMUs' C sources, generated data and build are in ``native/``; the Python slave machinery in

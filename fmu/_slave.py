@@ -1,28 +1,28 @@
-"""What the three slaves share: variables from ``variables.py``, FMI-safe error handling,
-step-size rules, parameter handling and FMU state.
+"""A co-simulation slave in Python, addressed by value reference, with FMI's modes, statuses
+and refusals: the model half of ``BisoVehicle``, whose C shell
+(``native/src/python``) forwards every FMI call to it through ``_embedded.py``.
 
-pythonfmu 0.7 turns any Python exception into ``fmi2Fatal`` and drops the Python object, so
-the next call of the host would touch freed memory. Every method the C wrapper calls is
-therefore guarded here: an exception is logged with status *error* and the call returns
-normally. The only non-fatal failure status pythonfmu can return is ``fmi2Discard`` (from
-``do_step`` returning False), so that is how this package refuses:
+As the standard reads them (and as the native FMUs do), every refusal is status *error*
+with one logged line naming the variable and what is allowed:
 
-* an invalid parameter is logged (status error) when the model is configured (in
-  ``fmi2ExitInitializationMode``) and every ``fmi2DoStep`` then returns ``fmi2Discard``
-  with the reason logged again; an invalid change of a *tunable* parameter is logged, the
-  parameter keeps its previous value, and that step is discarded;
-* a non-finite input (NaN, inf) makes ``fmi2DoStep`` return ``fmi2Discard`` with the input's
-  name logged; nothing is computed and the FMU stays usable (set valid inputs and retry);
-* a communication step that is not a whole number of the model's sample periods is
-  discarded the same way (nothing is computed).
+* a value outside a variable's allowed range or choices (``allowed_values``), a non-finite
+  Real, setting an output, or a fixed parameter after initialization: refused by the setter,
+  the value is not stored;
+* parameters that only the whole model can judge (a route that does not exist, rates that
+  do not divide): refused by ``ExitInitializationMode`` ("invalid parameters: ..."); the
+  instance stays in initialization mode, so the host may correct them and exit again;
+* an invalid change of a tunable estimator parameter in step mode: refused by the setter,
+  every tunable value of that call kept at its previous value;
+* a communication step the model cannot take (not a whole number of its periods): refused
+  by ``DoStep`` with the allowed steps; nothing is computed, the master may repeat the step.
 
-A refused step changes nothing, so a master may correct the inputs and repeat it.
+A method never raises: an unexpected exception is logged (status error) with where it
+happened, and the call returns ``ERROR``.
 """
 
 from __future__ import annotations
 
 import copy
-import ctypes
 import functools
 import io
 import json
@@ -30,47 +30,36 @@ import math
 import pickle
 import traceback
 from pathlib import Path
-from typing import Any, ClassVar
-from xml.etree.ElementTree import Element, SubElement
+from typing import Any, Callable, ClassVar, Sequence
 
 import numpy as np
-from pythonfmu import (Boolean, DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Integer,
-                       Real, String)
-from pythonfmu.enums import Fmi2Status
 
 from biso_cosim import __version__
-from biso_cosim.fmu.variables import UNITS, Var, fingerprint, has_flag_name, variables_of
+from biso_cosim.fmu.variables import Var, allowed_values, fingerprint, has_flag_name, variables_of
 
-__all__ = ["BisoSlave", "FmuConfigError", "slave_class", "STAMP_FILE"]
+__all__ = ["BisoSlave", "FmuConfigError", "FmuStepError", "STAMP_FILE", "OK", "WARNING", "DISCARD", "ERROR",
+           "FATAL"]
 
 STAMP_FILE = "biso_cosim_fmu.json"
 """Resource file written by the build: package version and variable fingerprint."""
 
-_PY_TYPES = {"Real": (Real, float), "Integer": (Integer, int), "Boolean": (Boolean, bool), "String": (String, str)}
-_STATE_MAGIC = b"biso_cosim FMU state 1\n"
+OK, WARNING, DISCARD, ERROR, FATAL = range(5)
+"""FMI statuses (fmi2Status and fmi3Status have the same values)."""
+
+INSTANTIATED, INITIALIZATION, STEP, TERMINATED = range(4)
+
+_CAST = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+_STATE_MAGIC = b"biso_cosim FMU state 2\n"
 _MAG_INVALID = 16  # biso_cosim.sensors.ImuFlag.MAG_INVALID
 
 
 class FmuConfigError(ValueError):
-    """A parameter or input the model cannot use; the message names the FMI variable."""
+    """Parameters the model cannot use; the message names the FMI variable."""
 
 
-def _guard(fallback: Any = None):
-    """Catch every exception of a method the C wrapper calls: log it, return ``fallback``
-    (called with the same arguments when callable)."""
-
-    def decorate(method):
-        @functools.wraps(method)
-        def guarded(self, *args):
-            try:
-                return method(self, *args)
-            except Exception as exc:  # noqa: BLE001 - anything else would be fmi2Fatal
-                self._error(f"{method.__name__}: {_describe(exc)}")
-                return fallback(self, *args) if callable(fallback) else fallback
-
-        return guarded
-
-    return decorate
+class FmuStepError(ValueError):
+    """A communication step the model cannot take (nothing was computed); the message says
+    what is allowed."""
 
 
 def _describe(exc: BaseException) -> str:
@@ -81,84 +70,201 @@ def _describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}{where}"
 
 
+def _guarded(method):
+    """Log any exception of an FMI call as status error and return ERROR (the host sees a
+    status, never a Python exception)."""
+
+    @functools.wraps(method)
+    def call(self, function: str, *args):
+        try:
+            return method(self, function, *args)
+        except Exception as exc:  # noqa: BLE001 - a status is all an FMI host can take
+            self.error(f"{function}: {_describe(exc)}")
+            return ERROR
+
+    return call
+
+
 def _heading(yaw: float) -> float:
     """Compass heading of an ENU yaw, [0, 2π), as ``frames.heading_from_yaw`` for one value."""
     h = (0.5 * math.pi - yaw) % (2.0 * math.pi)
     return 0.0 if h >= 2.0 * math.pi else h
 
 
-def _nan_list(self, vrs, *_):
-    return [math.nan] * len(vrs)
+class BisoSlave:
+    """Base of a Python co-simulation slave. Subclasses set ``fmu`` and implement
+    ``_configure()`` (build the model from ``values``; raise ValueError / TypeError naming
+    the variable), ``_advance(step_size)`` (one communication step; `FmuStepError` before
+    computing anything when the step cannot be taken), ``release_model()``, ``model_state()``
+    and ``restore_model_state(state)``.
 
-
-class BisoSlave(Fmi2Slave):
-    """Base of the biso_cosim slaves. Subclasses set ``fmu``, ``summary``, ``fmi_options`` and
-    implement ``_configure()`` (build the model from the parameters; raise ValueError /
-    TypeError naming the variable) and ``_advance(step_size)`` (one communication step)."""
+    Args:
+        instance_name: the host's name of the instance (for messages).
+        log: ``log(status, message)``: hands a message to the host's logger.
+        resources: the FMU's resources/ folder (its stamp is checked), or None.
+    """
 
     fmu: ClassVar[str]
-    summary: ClassVar[str]
-    author = "biso_cosim"
-    license = "MIT"
-    # CoSimulation capabilities; each FMU adds canHandleVariableCommunicationStepSize and
-    # canGetAndSetFMUstate / canSerializeFMUstate
-    fmi_options: ClassVar[dict[str, bool]] = {"canInterpolateInputs": False,
-                                              "canBeInstantiatedOnlyOncePerProcess": False}
-    default_step_s: ClassVar[float]     # DefaultExperiment stepSize (FMPy's simulate_fmu uses it)
-    default_stop_s: ClassVar[float]     # DefaultExperiment stopTime
 
-    def __init__(self, **kwargs: Any):
-        super().__init__(**kwargs)
-        self.modelName = self.fmu
-        self.description = self.summary
-        self.version = __version__
-        self.default_experiment = DefaultExperiment(0.0, self.default_stop_s, self.default_step_s)
-        self._check_stamp()
+    def __init__(self, instance_name: str, log: Callable[[int, str], None], resources: Path | None = None):
+        self.instance_name = instance_name
+        self._log = log
+        self._check_stamp(resources)
         self.specs: tuple[Var, ...] = variables_of(self.fmu)
+        self.by_vr: dict[int, Var] = {vr: v for vr, v in enumerate(self.specs, start=1)}
         self.spec = {v.name: v for v in self.specs}
-        self.values: dict[str, Any] = {v.name: v.start for v in self.specs}
         # names of the variables of each key head, in component order (e.g. "gyro" → 3 names)
         self.keyed: dict[str, list[str]] = {}
         for v in self.specs:
             self.keyed.setdefault(v.key[0], []).append(v.name)
-        for v in self.specs:
-            self._register(v)
-        self._real_inputs = [v.name for v in self.specs if v.causality == "input" and v.type == "Real"]
-        self._cast = {v.name: _PY_TYPES[v.type][1] for v in self.specs}
+        self._start()
+
+    def _start(self) -> None:
+        self.values: dict[str, Any] = {v.name: v.start for v in self.specs}
         self.set_by_host: set[str] = set()
-        self.pending: set[str] = set()     # tunable parameters changed since the last step
-        self.start_time = 0.0
-        self.time = 0.0
-        self.configured = False
-        self.problem: str | None = None    # why every step is refused, if anything
+        self.phase = INSTANTIATED
+        self.start_time = self.time = 0.0
 
-    # ---- variables ---------------------------------------------------------------------
+    # ---- logging -----------------------------------------------------------------------
 
-    def _register(self, v: Var) -> None:
-        cls, _ = _PY_TYPES[v.type]
-        kwargs: dict[str, Any] = {"causality": getattr(Fmi2Causality, v.causality),
-                                  "variability": getattr(Fmi2Variability, v.variability),
-                                  "description": v.description}
+    def error(self, message: str) -> None:
+        self._log(ERROR, message)
+
+    def warning(self, message: str) -> None:
+        self._log(WARNING, message)
+
+    def info(self, message: str) -> None:
+        self._log(OK, message)
+
+    # ---- modes ---------------------------------------------------------------------------
+
+    @_guarded
+    def setup_experiment(self, function: str, start_time: float) -> int:
+        if self.phase != INSTANTIATED:
+            self.error(f"{function}: only allowed after instantiation or reset")
+            return ERROR
+        self.start_time = self.time = float(start_time)
+        return OK
+
+    @_guarded
+    def enter_initialization(self, function: str, start_time: float | None = None) -> int:
+        if self.phase != INSTANTIATED:
+            self.error(f"{function}: only allowed after instantiation or reset")
+            return ERROR
+        if start_time is not None:
+            self.start_time = self.time = float(start_time)
+        self.phase = INITIALIZATION
+        return OK
+
+    @_guarded
+    def exit_initialization(self, function: str) -> int:
+        if self.phase != INITIALIZATION:
+            self.error(f"{function}: only allowed in initialization mode")
+            return ERROR
+        try:
+            self._configure()
+        except (ValueError, TypeError, KeyError, FileNotFoundError) as exc:
+            self.error(f"{function}: invalid parameters: {_describe(exc)} (correct them and exit initialization "
+                       "mode again)")
+            return ERROR
+        self.phase = STEP
+        return OK
+
+    @_guarded
+    def do_step(self, function: str, t: float, step_size: float) -> int:
+        if self.phase != STEP:
+            self.error(f"{function}: only allowed in step mode (after ExitInitializationMode)")
+            return ERROR
+        if not (math.isfinite(step_size) and step_size > 0.0):
+            self.error(f"{function} at t = {t!r} s refused: the step size must be positive, got {step_size!r}")
+            return ERROR
+        try:
+            self._advance(step_size)
+        except FmuStepError as exc:
+            self.error(f"{function} at t = {t!r} s refused (nothing computed): {exc}")
+            return ERROR
+        self.time = t + step_size
+        return OK
+
+    @_guarded
+    def terminate(self, function: str) -> int:
+        if self.phase not in (INITIALIZATION, STEP):
+            self.error(f"{function}: only allowed in initialization or step mode")
+            return ERROR
+        # after Terminate only Reset or FreeInstance may follow: the model's resources go now
+        self.release_model()
+        self.phase = TERMINATED
+        return OK
+
+    @_guarded
+    def reset(self, function: str) -> int:
+        self.release_model()
+        self._start()
+        return OK
+
+    def free(self) -> None:
+        self.release_model()
+
+    # ---- values --------------------------------------------------------------------------
+
+    @_guarded
+    def set(self, function: str, type_name: str, vrs: Sequence[int], values: Sequence[Any]) -> int:
+        """Set variables of one FMI type (``Real``, ``Integer``, ``Boolean``, ``String``) by
+        value reference; refused ones are logged and not stored."""
+        status = OK
+        old: dict[str, Any] = {}  # tunable parameters changed in step mode: their previous values
+        for vr, value in zip(vrs, values):
+            v = self.by_vr.get(int(vr))
+            if v is None or v.type != type_name:
+                self.error(f"{function}: {self.fmu} has no {type_name} variable with value reference {vr}")
+                status = ERROR
+                continue
+            value = _CAST[v.type](value)
+            problem = self._refusal(v, value)
+            if problem:
+                self.error(f"{function}: {v.name} not set: {problem}")
+                status = ERROR
+                continue
+            if v.causality == "parameter":
+                if self.phase == STEP:
+                    old.setdefault(v.name, self.values[v.name])
+                self.set_by_host.add(v.name)
+            self.values[v.name] = value
+        if old and not self._apply_tunables(function, sorted(old)):
+            self.values.update(old)
+            status = ERROR
+        return status
+
+    def _refusal(self, v: Var, value: Any) -> str | None:
+        """Why ``value`` cannot be stored in ``v`` now (None: it can)."""
         if v.causality == "output":
-            kwargs["initial"] = Fmi2Initial.exact  # fmpy validate wants start values of outputs
+            return "it is an output (the FMU computes it)"
+        if self.phase == TERMINATED:
+            return "the instance is terminated (Reset it first)"
+        if v.causality == "parameter" and v.variability == "fixed" and self.phase == STEP:
+            return f"a fixed parameter cannot change after initialization (kept {self.values[v.name]!r})"
+        if v.type == "Boolean" or (v.type == "String" and not allowed_values(v).choices):
+            return None
+        allowed = allowed_values(v)
+        if allowed.admits(value):
+            return None
+        bounded = math.isfinite(allowed.lo) or math.isfinite(allowed.hi)
+        unit = f" {v.unit}" if v.unit and bounded and not allowed.choices else ""
+        return f"allowed {allowed}{unit}, got {value!r}"
+
+    @_guarded
+    def get(self, function: str, type_name: str, vrs: Sequence[int], out: list[Any]) -> int:
+        """Write the values of variables of one FMI type into ``out`` (same order as ``vrs``)."""
+        status = OK
         values = self.values
-        self.register_variable(cls(v.name, getter=lambda n=v.name: values[n],
-                                   setter=lambda x, var=v: self._set(var, x), **kwargs), nested=False)
-
-    def _set(self, v: Var, value: Any) -> None:
-        if v.causality == "output":
-            self._error(f"{v.name} is an output and cannot be set")
-            return
-        value = _PY_TYPES[v.type][1](value)
-        if v.causality == "parameter" and self.configured:
-            if v.variability != "tunable":
-                self._error(f"{v.name} is a fixed parameter: it cannot change after initialization "
-                            f"(kept {self.values[v.name]!r})")
-                return
-            self.pending.add(v.name)
-        self.values[v.name] = value
-        if v.causality == "parameter":
-            self.set_by_host.add(v.name)
+        for i, vr in enumerate(vrs):
+            v = self.by_vr.get(int(vr))
+            if v is None or v.type != type_name:
+                self.error(f"{function}: {self.fmu} has no {type_name} variable with value reference {vr}")
+                status = ERROR
+                continue
+            out[i] = values[v.name]
+        return status
 
     def vector(self, head: str) -> list[Any]:
         """The current values of the variables of one key head, in component order."""
@@ -168,7 +274,7 @@ class BisoSlave(Fmi2Slave):
     def put(self, head: str, seq: Any) -> None:
         """Write the outputs of one key head from a sequence (list, tuple, array) or a scalar."""
         names = self.keyed[head]
-        values, cast = self.values, self._cast[names[0]]
+        values, cast = self.values, _CAST[self.spec[names[0]].type]
         if isinstance(seq, np.ndarray):
             seq = seq.tolist()
         if not isinstance(seq, (list, tuple)):
@@ -177,116 +283,7 @@ class BisoSlave(Fmi2Slave):
         for name, x in zip(names, seq):
             values[name] = cast(x)
 
-    # ---- logging -----------------------------------------------------------------------
-
-    def _message(self, message: str, status: Fmi2Status) -> None:
-        # an FMI log message is a printf format: "%" must be written "%%"
-        self.log(f"{self.fmu} {self.instance_name}: {message}".replace("%", "%%"), status)
-
-    def _error(self, message: str) -> None:
-        self._message(message, Fmi2Status.error)
-
-    def _warning(self, message: str) -> None:
-        self._message(message, Fmi2Status.warning)
-
-    def _info(self, message: str) -> None:
-        self._message(message, Fmi2Status.ok)
-
-    # ---- FMI calls (all guarded) ---------------------------------------------------------
-
-    get_real = _guard(_nan_list)(Fmi2Slave.get_real)
-    get_integer = _guard(lambda self, vrs: [0] * len(vrs))(Fmi2Slave.get_integer)
-    get_boolean = _guard(lambda self, vrs: [False] * len(vrs))(Fmi2Slave.get_boolean)
-    get_string = _guard(lambda self, vrs: [""] * len(vrs))(Fmi2Slave.get_string)
-
-    @_guard()
-    def set_real(self, vrs, values):
-        self._set_each(vrs, values, "Real")
-
-    @_guard()
-    def set_integer(self, vrs, values):
-        self._set_each(vrs, values, "Integer")
-
-    @_guard()
-    def set_boolean(self, vrs, values):
-        self._set_each(vrs, values, "Boolean")
-
-    @_guard()
-    def set_string(self, vrs, values):
-        self._set_each(vrs, values, "String")
-
-    def _set_each(self, vrs, values, type_name: str) -> None:
-        for vr, value in zip(vrs, values):
-            var = self.vars.get(vr)
-            if var is None or self.spec[var.name].type != type_name:
-                self._error(f"no {type_name} variable with value reference {vr}")
-                continue
-            try:
-                var.setter(value)
-            except Exception as exc:  # noqa: BLE001
-                self._error(f"setting {var.name}: {_describe(exc)}")
-
-    @_guard()
-    def setup_experiment(self, start_time: float, stop_time: float | None = None, tolerance: float | None = None):
-        # pythonfmu 0.7's wrapper passes the start time only; the models need nothing else
-        self.start_time = self.time = float(start_time)
-
-    @_guard()
-    def enter_initialization_mode(self):
-        pass
-
-    @_guard()
-    def exit_initialization_mode(self):
-        self._try_configure()
-
-    @_guard()
-    def terminate(self):
-        # after fmi2Terminate only fmi2Reset (which configures the model again) or
-        # fmi2FreeInstance may follow: the model's resources (MuJoCo) go now, while everything
-        # they need is alive, rather than with the slave when the cycle collector finds it
-        self.release_model()
-        self.configured = False
-
-    def release_model(self) -> None:
-        """Drop the model's resources (subclasses with a heavy model override)."""
-
-    @_guard(False)
-    def do_step(self, current_time: float, step_size: float) -> bool:
-        if not self.configured and self.problem is None:
-            self._try_configure()  # a master that skipped initialization mode
-        if self.problem is not None:
-            self._error(f"step at t = {current_time:g} s refused: {self.problem}")
-            return False
-        if not (math.isfinite(step_size) and step_size > 0.0):
-            self._error(f"step at t = {current_time:g} s refused: step size must be positive, got {step_size!r}")
-            return False
-        values = self.values
-        bad = [n for n in self._real_inputs if not math.isfinite(values[n])]
-        if bad:
-            self._error(f"step at t = {current_time:g} s refused: input(s) {', '.join(bad)} not finite "
-                        f"({', '.join(repr(values[n]) for n in bad)}); nothing was computed")
-            return False
-        if self.pending and not self._apply_pending():
-            return False
-        try:
-            self._advance(step_size)
-        except FmuConfigError as exc:
-            self._error(f"step at t = {current_time:g} s refused: {exc}")
-            return False
-        self.time = current_time + step_size
-        return True
-
-    # ---- configuration -------------------------------------------------------------------
-
-    def _try_configure(self) -> None:
-        try:
-            self._configure()
-        except (ValueError, TypeError, KeyError, FileNotFoundError) as exc:
-            self.problem = f"invalid parameters: {_describe(exc)}"
-            self._error(self.problem)
-            return
-        self.configured = True
-        self.pending.clear()
+    # ---- the model (subclasses) ----------------------------------------------------------
 
     def _configure(self) -> None:
         raise NotImplementedError
@@ -294,81 +291,55 @@ class BisoSlave(Fmi2Slave):
     def _advance(self, step_size: float) -> None:
         raise NotImplementedError
 
-    def _apply_pending(self) -> bool:
-        """Apply the tunable estimator parameters changed since the last step (``self.est``,
-        ``self.name``: the configured estimator); False (step refused) when invalid."""
+    def release_model(self) -> None:
+        """Drop the model's resources (subclasses with a heavy model override)."""
+
+    def model_state(self) -> Any:
+        raise NotImplementedError
+
+    def restore_model_state(self, state: Any) -> None:
+        raise NotImplementedError
+
+    def apply_estimator_params(self, changes: dict[str, Any]) -> None:
+        """Change the configured estimator's parameters (ValueError / TypeError when invalid)."""
+        raise NotImplementedError
+
+    # ---- tunable parameters and estimators ----------------------------------------------
+
+    def _apply_tunables(self, function: str, names: list[str]) -> bool:
+        """Apply tunable estimator parameters changed in step mode; False (logged) when invalid."""
         changes: dict[str, Any] = {}
-        for name in sorted(self.pending):
+        chosen = self.values["estimator"]
+        for name in names:
             v = self.spec[name]
             if v.key[0] == "given":  # a has_ flag: the parameter it belongs to changes
                 v = self.spec[f"{v.key[1]}.{v.key[2]}"]
-            if v.key[1] == self.name:
+            if v.key[1] == chosen:
                 changes[v.key[2]] = self._param_value(v)
             else:
-                self._warning(f"{name} belongs to another estimator than {self.name!r}: ignored")
-        self.pending.clear()
+                self.warning(f"{function}: {name} belongs to another estimator than {chosen!r}: ignored")
         if not changes:
             return True
         try:
-            self.est.set_params(**changes)
+            self.apply_estimator_params(changes)
         except (ValueError, TypeError) as exc:
-            self.params_as_values(self.name, self.est.params)
-            self._error(f"step refused: invalid parameter change of {self.name}: {exc} (parameters kept)")
+            self.error(f"{function}: invalid parameter change of {chosen}: {exc} (every value of this call kept)")
             return False
-        self._info(f"{self.name} parameters changed: {changes}")
+        self.info(f"{function}: {chosen} parameters changed: {changes}")
         return True
 
-    def samples_in(self, step_size: float, rate_hz: float, what: str) -> int:
-        """How many periods of ``rate_hz`` one step holds; FmuConfigError unless whole."""
-        n_float = step_size * rate_hz
-        n = round(n_float)
-        if n < 1 or abs(n_float - n) > 1e-6:
-            raise FmuConfigError(f"the communication step {step_size!r} s is not a whole number of {what} "
-                                 f"periods (1/{rate_hz:g} s); use a multiple of {1.0 / rate_hz!r} s")
-        return n
-
-    def mounting_quaternion(self, head: str = "mounting") -> np.ndarray | None:
-        """q_body_sensor from the mounting angles, or None for no rotation."""
-        from biso_cosim.frames import quat_from_euler
-
-        angles = self.vector(head)
-        if not all(math.isfinite(a) for a in angles):
-            raise ValueError(f"{'/'.join(self.keyed[head])} must be finite, got {angles}")
-        return None if not any(angles) else quat_from_euler(*angles)
-
-    # ---- estimators ----------------------------------------------------------------------
-
-    def estimator_choice(self, site_declination: float | None = None) -> tuple[str, dict[str, Any]]:
+    def estimator_choice(self) -> tuple[str, dict[str, Any]]:
         """The chosen estimator's name and its parameters from the variables (an optional
-        one is None unless its ``has_`` flag is true).
-
-        With ``declination_from_site`` true, ``declination_rad`` is ``site_declination``
-        (left out when that is None: the model then uses its own site's).
-        """
-        from biso_cosim.fmu.variables import fmu_estimator_names
-
+        one is None unless its ``has_`` flag is true). With ``declination_from_site`` true
+        ``declination_rad`` is left out: the model uses its site's."""
         name = self.values["estimator"]
-        if name not in fmu_estimator_names():
-            raise ValueError(f"estimator must be one of {', '.join(fmu_estimator_names())}, got {name!r}"
-                             " (the GNSS-aided estimators are not offered in the FMUs)")
         params: dict[str, Any] = {}
         for v in self.specs:
             if v.key[0] == "param" and v.key[1] == name:
                 params[v.key[2]] = self._param_value(v)
         if self.values.get("declination_from_site", False):
             params.pop("declination_rad", None)
-            if site_declination is not None:
-                params["declination_rad"] = site_declination
         return name, params
-
-    def make_estimator(self, fs_hz: float, params: dict[str, Any]):
-        """``make_estimator`` for the chosen estimator; errors name its FMI variables."""
-        from biso_cosim.estimators import make_estimator
-
-        try:
-            return make_estimator(self.name, fs_hz, **params)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(f"estimator {self.name!r} (variables {self.name}.*): {exc}") from None
 
     def _param_value(self, v: Var) -> Any:
         from biso_cosim.fmu.variables import estimator_param_groups
@@ -381,18 +352,21 @@ class BisoSlave(Fmi2Slave):
             return None
         return self.values[v.name]
 
-    def params_as_values(self, name: str, params: Any) -> None:
-        """Write an estimator's parameter record back into the variables (after a refused change)."""
-        for v in self.specs:
-            if v.key[0] == "param" and v.key[1] == name:
-                value = getattr(params, v.key[2])
-                if len(v.key) == 4:
-                    value = value[v.key[3]]
-                elif value is None:
-                    continue  # the value stays; its has_ flag (a parameter of its own) says None
-                elif isinstance(value, tuple):
-                    value = value[0]
-                self.values[v.name] = _PY_TYPES[v.type][1](value)
+    def samples_in(self, step_size: float, rate_hz: float, what: str) -> int:
+        """How many periods of ``rate_hz`` one step holds; `FmuStepError` unless whole."""
+        n_float = step_size * rate_hz
+        n = round(n_float)
+        if n < 1 or abs(n_float - n) > 1e-6:
+            raise FmuStepError(f"the communication step {step_size!r} s is not a whole number of {what} periods; "
+                               f"allowed steps: n * {1.0 / rate_hz!r} s (n = 1, 2, ...)")
+        return n
+
+    def mounting_quaternion(self, head: str = "mounting") -> np.ndarray | None:
+        """q_body_sensor from the mounting angles, or None for no rotation."""
+        from biso_cosim.frames import quat_from_euler
+
+        angles = self.vector(head)
+        return None if not any(angles) else quat_from_euler(*angles)
 
     # ---- shared outputs ------------------------------------------------------------------
 
@@ -438,115 +412,61 @@ class BisoSlave(Fmi2Slave):
 
     # ---- FMU state -----------------------------------------------------------------------
 
-    def model_state(self) -> Any:
-        """A copy of the model's own state (subclasses that support FMU state override)."""
-        raise NotImplementedError
-
-    def restore_model_state(self, state: Any) -> None:
-        raise NotImplementedError
-
-    @_guard()
-    def _get_fmu_state(self):
-        if not self.fmi_options.get("canGetAndSetFMUstate"):
-            self._error("fmi2GetFMUstate is not supported by this FMU (canGetAndSetFMUstate=false)")
-            return None
+    def get_state(self) -> dict[str, Any]:
+        """A deep copy of the whole instance: variables, mode, time and the model's state."""
         return copy.deepcopy({
-            "fmu": self.fmu, "values": self.values, "set_by_host": self.set_by_host, "pending": self.pending,
+            "fmu": self.fmu, "values": self.values, "set_by_host": self.set_by_host, "phase": self.phase,
             "time": self.time, "start_time": self.start_time,
-            "configured": self.configured, "problem": self.problem,
-            "model": self.model_state() if self.configured else None,
+            "model": self.model_state() if self.phase == STEP else None,
         })
 
-    @_guard()
-    def _set_fmu_state(self, state):
-        if not self.fmi_options.get("canGetAndSetFMUstate"):
-            self._error("fmi2SetFMUstate is not supported by this FMU (canGetAndSetFMUstate=false)")
-            return
+    @_guarded
+    def set_state(self, function: str, state: Any) -> int:
         if not isinstance(state, dict) or state.get("fmu") != self.fmu:
-            self._error(f"fmi2SetFMUstate: not a state of {self.fmu}; nothing changed")
-            return
+            self.error(f"{function}: not a state of {self.fmu}; nothing changed")
+            return ERROR
         state = copy.deepcopy(state)
         fixed = self._fixed_values()
+        was_step = self.phase == STEP
         self.values.clear()
         self.values.update(state["values"])
-        for name in ("set_by_host", "pending", "time", "start_time", "problem"):
-            setattr(self, name, state[name])
-        if state["configured"] and (not self.configured or self._fixed_values() != fixed):
-            self._try_configure()  # e.g. after fmi2Reset: the model from the state's parameters
+        self.set_by_host = state["set_by_host"]
+        self.time, self.start_time = state["time"], state["start_time"]
         if state["model"] is not None:
+            if not was_step or self._fixed_values() != fixed:
+                self._configure()  # e.g. after Reset: the model from the state's parameters
             self.restore_model_state(state["model"])
-        self.configured = state["configured"]
+        elif was_step:
+            self.release_model()
+        self.phase = state["phase"]
+        return OK
 
     def _fixed_values(self) -> list[Any]:
         return [self.values[v.name] for v in self.specs if v.causality == "parameter" and v.variability == "fixed"]
 
     @staticmethod
-    def _fmu_state_to_bytes(state) -> bytes:
+    def serialize(state: dict[str, Any]) -> bytes:
         return _STATE_MAGIC + pickle.dumps(state, protocol=5)
 
     @staticmethod
-    def _fmu_state_from_bytes(data: bytes):
+    def deserialize(data: bytes) -> Any:
+        """The state in ``data``; ValueError when it is not one of ours."""
         if not data.startswith(_STATE_MAGIC):
-            return None  # _set_fmu_state then logs that this is not a state of this FMU
+            raise ValueError("not a serialized biso_cosim FMU state (or one of another version)")
         return _StateUnpickler(io.BytesIO(data[len(_STATE_MAGIC):])).load()
 
-    # ---- model description ---------------------------------------------------------------
+    # ---- build stamp ---------------------------------------------------------------------
 
-    def _check_stamp(self) -> None:
+    def _check_stamp(self, resources: Path | None) -> None:
         """Refuse to run under a package whose variables differ from those the FMU was built with."""
-        stamp = Path(self.resources or "") / STAMP_FILE
-        if not self.resources or not stamp.is_file():
+        stamp = Path(resources) / STAMP_FILE if resources else None
+        if stamp is None or not stamp.is_file():
             return
         built = json.loads(stamp.read_text("utf-8"))
         if built.get("fingerprint") != fingerprint(self.fmu):
             raise RuntimeError(
-                f"{self.fmu}.fmu was built with biso_cosim {built.get('version')} whose variables differ from "
+                f"{self.fmu} was built with biso_cosim {built.get('version')} whose variables differ from "
                 f"those of the installed biso_cosim {__version__}: rebuild it with `biso-cosim fmu build`")
-
-    def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
-        root = super().to_xml(model_options or {})
-        cs = root.find("CoSimulation")
-        for option, value in self.fmi_options.items():
-            cs.set(option, str(bool(value)).lower())
-        # UnitDefinitions go right after the CoSimulation element (FMI 2.0 schema order)
-        units = Element("UnitDefinitions")
-        used = {v.unit for v in self.specs if v.unit}
-        for name in sorted(used):
-            exponents, factor, offset, displays = UNITS[name]
-            unit = SubElement(units, "Unit", name=name)
-            base = SubElement(unit, "BaseUnit", {k: str(e) for k, e in exponents.items()})
-            if factor != 1.0:
-                base.set("factor", repr(factor))
-            if offset != 0.0:
-                base.set("offset", repr(offset))
-            for display, (d_factor, d_offset) in displays.items():
-                du = SubElement(unit, "DisplayUnit", name=display, factor=repr(d_factor))
-                if d_offset:
-                    du.set("offset", repr(d_offset))
-        root.insert(list(root).index(cs) + 1, units)
-        for node in root.find("ModelVariables"):
-            v = self.spec[node.get("name")]
-            typed = node[0]
-            if v.type == "Real":
-                if typed.get("start") is not None:
-                    typed.set("start", _xml_double(v.start))  # all 17 digits, NaN for None
-                if v.unit:
-                    typed.set("unit", v.unit)
-                if v.display_unit:
-                    typed.set("displayUnit", v.display_unit)
-            if v.min is not None:
-                typed.set("min", _xml_double(v.min) if v.type == "Real" else str(int(v.min)))
-            if v.max is not None:
-                typed.set("max", _xml_double(v.max) if v.type == "Real" else str(int(v.max)))
-        return root
-
-
-def _xml_double(x: float) -> str:
-    if math.isnan(x):
-        return "NaN"
-    if math.isinf(x):
-        return "INF" if x > 0 else "-INF"
-    return repr(float(x))
 
 
 class _StateUnpickler(pickle.Unpickler):
@@ -558,34 +478,3 @@ class _StateUnpickler(pickle.Unpickler):
         if module == "builtins" and name in {"set", "frozenset", "complex", "slice", "range"}:
             return super().find_class(module, name)
         raise pickle.UnpicklingError(f"FMU state refers to {module}.{name}, which a state never holds")
-
-
-def hold(namespace: dict) -> None:
-    """Add one reference to a slave script's module namespace; the script calls
-    ``hold(globals())`` at its top level.
-
-    pythonfmu 0.7's loader (``findClass`` in its fmi2.cpp) re-executes the slave script in
-    the module's namespace at every ``fmi2Instantiate`` and then releases that namespace
-    once more than it acquired it. A script whose namespace nothing else references (ours
-    define no functions) would lose its module dictionary at the first instantiation and the
-    second one would fail or crash. The re-execution also runs this call, so each
-    instantiation adds the reference it takes away.
-    """
-    ctypes.pythonapi.Py_IncRef(ctypes.py_object(namespace))
-
-
-def slave_class(base: type[BisoSlave]):
-    """Decorator for the slave scripts: ``@slave_class(EstimatorSlave)`` above ``class
-    BisoEstimator(Fmi2Slave):`` makes that name the package's slave class.
-
-    The script keeps the literal ``class Name(Fmi2Slave):`` that pythonfmu's loaders look for
-    (a regular expression on the text in older releases; in 0.7 the class whose MRO holds
-    ``Fmi2Slave`` deepest among the names the script defines), while the class itself lives
-    in the package: a slave script stays free of numba caches and of module names shared
-    between FMUs (docs/design.md §10).
-    """
-
-    def decorate(stub: type) -> type:
-        return type(stub.__name__, (base,), {"__module__": stub.__module__, "__doc__": stub.__doc__ or base.__doc__})
-
-    return decorate

@@ -39,7 +39,7 @@ __all__ = [
     "Var", "UNITS", "fmi_unit", "estimator_variables", "estimator_param_groups", "python_only_params",
     "sensor_variables",
     "site_variables", "reading_outputs", "estimate_outputs", "error_outputs", "variables_of",
-    "fingerprint", "variable_table", "fill_docs", "AXES", "QUAT",
+    "fingerprint", "variable_table", "fill_docs", "AXES", "QUAT", "Allowed", "allowed_values",
 ]
 
 AXES = ("x", "y", "z")
@@ -65,6 +65,7 @@ class Var:
     key: tuple = ()
     min: float | None = None
     max: float | None = None
+    min_open: bool = False         # the value must be > min (FMI's min, which is inclusive, still says min)
 
 
 # --------------------------------------------------------------------------------------
@@ -186,6 +187,7 @@ def _typed_rows() -> dict[str, tuple[dict[str, Any], ...]]:
     return out
 
 
+@functools.cache
 def _ranges(name: str) -> dict[str, tuple[float, float, bool, tuple[str, ...]]]:
     """Allowed (min, max, min_open, choices) of each C parameter entry of one estimator."""
     from biso_cosim.fmu.native.gen import kind_entries
@@ -213,6 +215,43 @@ def _param_description(row: dict[str, Any], allowed: str, note: str = "") -> str
     if row["source"]:
         text += f" [{row['source']}]"
     return text + note
+
+
+@dataclass(frozen=True)
+class Allowed:
+    """The values a parameter or input accepts: a range (``lo`` excluded when ``lo_open``)
+    or, for a String, a list of choices. ``str()`` gives the text the descriptions and the
+    refusals use ("> 0", "one of biso, ...")."""
+
+    lo: float = -math.inf
+    hi: float = math.inf
+    lo_open: bool = False
+    choices: tuple[str, ...] = ()
+
+    def admits(self, value: Any) -> bool:
+        if self.choices:
+            return value in self.choices
+        if isinstance(value, (bool, str)):
+            return True
+        x = float(value)
+        if not math.isfinite(x):
+            return False
+        return (x > self.lo if self.lo_open else x >= self.lo) and x <= self.hi
+
+    def __str__(self) -> str:
+        return _allowed(self.lo, self.hi, self.lo_open, self.choices)
+
+
+def allowed_values(v: Var) -> Allowed:
+    """What a variable accepts: an estimator parameter its C table's range or choices, the
+    ``estimator`` the FMU estimators, any other variable its ``min``/``max`` (a Real without
+    bounds: any finite value)."""
+    if v.key[:1] == ("param",):
+        lo, hi, lo_open, choices = _ranges(v.key[1])[v.name.split(".", 1)[1]]
+        return Allowed(lo, hi, lo_open, choices)
+    if v.key == ("estimator",):
+        return Allowed(choices=fmu_estimator_names())
+    return Allowed(-math.inf if v.min is None else v.min, math.inf if v.max is None else v.max, v.min_open)
 
 
 def has_flag_name(name: str, param: str) -> str:
@@ -503,11 +542,11 @@ def _vehicle_fmu() -> list[Var]:
         Var("route", "String", "parameter", "fixed", "loop600",
             f"route to drive: a library route ({', '.join(route_names())}) or a route file (.toml)",
             key=("cosim", "route")),
-        _real("physics_rate_hz", "parameter", "fixed", 1000.0, "MuJoCo step rate", "Hz", ("cosim", "physics_rate_hz"),
-              min=0.0),
+        _real("physics_rate_hz", "parameter", "fixed", 1000.0, "MuJoCo step rate (> 0)", "Hz",
+              ("cosim", "physics_rate_hz"), min=0.0, min_open=True),
         _real("control_rate_hz", "parameter", "fixed", 50.0, "driver rate (a whole fraction of the physics "
-              "rate); each communication step must be a whole number of control periods", "Hz",
-              ("cosim", "control_rate_hz"), min=0.0),
+              "rate, > 0); each communication step must be a whole number of control periods", "Hz",
+              ("cosim", "control_rate_hz"), min=0.0, min_open=True),
         Var("external_driver", "Boolean", "parameter", "fixed", False,
             "drive with the inputs steer, drive, brake instead of the scripted driver", key=("external_driver",)),
     ]

@@ -1,4 +1,5 @@
-"""``BisoVehicle.fmu``: the whole co-simulation (``biso_cosim.cosim.CoSimulation``) as a slave.
+"""``BisoVehicle`` (``-fmi2.fmu``, ``-fmi3.fmu``): the whole co-simulation
+(``biso_cosim.cosim.CoSimulation``) as a slave.
 
 The MuJoCo car drives a route (the scripted driver, or the inputs ``steer``, ``drive``,
 ``brake`` with ``external_driver``); the virtual MPU-9250 and one estimator run in the loop,
@@ -7,43 +8,37 @@ control periods (20 ms by default), each period is one ``CoSimulation.step``. Th
 are the latest sensor sample of the step, the truth interpolated to its time stamp (what
 the run's log holds), the estimate after it and its error.
 
-FMU state: ``fmi2GetFMUstate``/``fmi2SetFMUstate`` and serialisation take the whole
-co-simulation (``CoSimulation.get_state``: MuJoCo, driver, sensor, estimator, counters), so
-a master can go back in time and repeat a step with other inputs bit for bit.
+FMU state: get/set FMU state and serialisation take the whole co-simulation
+(``CoSimulation.get_state``: MuJoCo, driver, sensor, estimator, counters), so a master can
+go back in time and repeat a step with other inputs bit for bit.
+
+The slave uses CoSimulation's public API only; the C shell that embeds Python and calls it
+is ``native/src/python`` (``_embedded.py`` is its Python side).
 """
 
 from __future__ import annotations
 
-from biso_cosim.fmu._slave import BisoSlave, FmuConfigError
-from biso_cosim.vehicle._kernels import truth_columns
+from biso_cosim.fmu._slave import BisoSlave
 
 __all__ = ["VehicleSlave"]
 
-# output key head → columns of biso_cosim.vehicle.sim.Truth.packed
-_TRUTH_COLUMNS = tuple((head, truth_columns(name)) for head, name in (
-    ("truth_omega", "omega_b"), ("truth_force", "specific_force_b"), ("truth_q", "q_wb"), ("truth_pos", "pos_w"),
-    ("truth_vel", "vel_w"), ("truth_speed", "speed_mps")))
+# output key head → attribute of biso_cosim.vehicle.sim.Truth
+_TRUTH_OUTPUTS = (("truth_omega", "omega_b"), ("truth_force", "specific_force_b"), ("truth_q", "q_wb"),
+                  ("truth_pos", "pos_w"), ("truth_vel", "vel_w"), ("truth_speed", "speed_mps"))
 
 
 class VehicleSlave(BisoSlave):
     """MuJoCo car on a route with the virtual MPU-9250 and an estimator in the loop."""
 
     fmu = "BisoVehicle"
-    summary = ("The biso_cosim co-simulation: MuJoCo car on a scripted route (or driven by the inputs), "
-               "virtual MPU-9250 and attitude estimator in the loop; truth, readings and estimate out. "
-               "Python-based (pythonfmu): the Python that loads it must import biso_cosim and its dependencies")
-    default_step_s = 0.02  # one control period
-    default_stop_s = 580.0  # loop600 (the default route) and 10 s at rest, as biso-cosim run
-    fmi_options = {**BisoSlave.fmi_options, "canHandleVariableCommunicationStepSize": True,
-                   "canGetAndSetFMUstate": True, "canSerializeFMUstate": True}
 
     def _configure(self) -> None:
         from biso_cosim.cosim import CoSimulation, EstimatorSpec
 
         values = self.values
         self.name, params = self.estimator_choice()  # an unset declination: the route site's (CoSimulation)
-        # pythonfmu 0.7 passes no stop time, and stepping goes on past CoSimulation's duration
-        # (which only ends run()), so the duration is the route's default
+        # stepping goes on past CoSimulation's duration (which only ends run()), so the
+        # duration is the route's default
         registers = {v.key[1]: values[v.name] for v in self.specs
                      if v.key[0] == "register" and v.name in self.set_by_host} or None
         self.sim = CoSimulation(
@@ -55,17 +50,12 @@ class VehicleSlave(BisoSlave):
         self.est = self.sim.estimators[self.name]
         self.external = values["external_driver"]
 
-    def _command(self):
+    def _advance(self, step_size: float) -> None:
         from biso_cosim.vehicle.driver import DriverCommand
 
-        steer, drive, brake = self.vector("command")
-        if not (-1.0 <= drive <= 1.0 and 0.0 <= brake <= 1.0):
-            raise FmuConfigError(f"drive must be in [-1, 1] and brake in [0, 1], got drive={drive!r}, brake={brake!r}")
-        return DriverCommand(steer, drive, brake)
-
-    def _advance(self, step_size: float) -> None:
         n = self.samples_in(step_size, self.sim.vehicle.control_rate_hz, "control (control_rate_hz)")
-        command = self._command() if self.external else None
+        # the setters keep drive in [-1, 1] and brake in [0, 1] (the inputs' min and max)
+        command = DriverCommand(*self.vector("command")) if self.external else None
         latest, count = None, 0
         for _ in range(n):
             samples, truth, outputs = self.sim.step(command)
@@ -78,13 +68,14 @@ class VehicleSlave(BisoSlave):
             return
         samples, truth, estimate = latest
         self.put_readings(samples, self.start_time, count)
-        row = truth.packed[-1]
-        for head, columns in _TRUTH_COLUMNS:
-            self.put(head, row[columns].tolist() if isinstance(columns, slice) else [float(row[columns])])
+        for head, name in _TRUTH_OUTPUTS:
+            self.put(head, getattr(truth, name)[-1])
         self.put_estimate(estimate.q_wb[-1], estimate.flags[-1],
                           None if estimate.gyro_bias_b is None else estimate.gyro_bias_b[-1])
         self.put_errors(estimate.q_wb[-1], truth.q_wb[-1])
 
+    def apply_estimator_params(self, changes) -> None:
+        self.est.set_params(**changes)
 
     def release_model(self) -> None:
         self.sim = None

@@ -10,6 +10,7 @@ import importlib.metadata as metadata
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -200,36 +201,83 @@ def test_libcosim_runs_the_native_fmi2_fmus(fmus):
     assert np.array_equal(out, ref[:, cols])
 
 
-def test_libcosim_logs_parameter_errors(fmus, tmp_path):
-    """libcosim (libcosimpy 0.0.6) turns an error status from a setter or from
-    ExitInitializationMode into an exception on its worker thread, which ends the process
-    (std::terminate): a libcosim defect. What the FMU can do it does: the error status and
-    the logged reason naming the variable reach libcosim's log."""
+_LIBCOSIM_SCRIPT = """
+import sys
+from libcosimpy.CosimExecution import CosimExecution
+from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+from libcosimpy.CosimSlave import CosimLocalSlave
+log_output_level(CosimLogLevel.ERROR)
+path, name, value, step = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
+ex = CosimExecution.from_step_size(step_size=int(round(step * 1e9)))
+i = ex.add_local_slave(CosimLocalSlave(fmu_path=path, instance_name='e'))
+refs = {v.name.decode(): v.reference for v in ex.slave_variables(i)}
+if name:
+    setter = ex.string_initial_value if name == 'route' else ex.real_initial_value
+    print('initial value', setter(i, refs[name], value if name == 'route' else float(value)), flush=True)
+print('stepped', ex.step(), flush=True)
+"""
+
+
+@pytest.mark.parametrize("fmu, name, value, step, message", [
+    ("BisoEstimator-fmi2", "fs_hz", "-1", 0.005, "fmi2SetReal: fs_hz not set: allowed >= 0, got -1"),
+    ("BisoVehicle-fmi2", "physics_rate_hz", "-1", 0.02, "fmi2SetReal: physics_rate_hz not set: allowed > 0 Hz"),
+    ("BisoVehicle-fmi2", "route", "nowhere", 0.02,
+     "fmi2ExitInitializationMode: invalid parameters: unknown route 'nowhere'"),
+])
+def test_libcosim_ends_the_process_on_a_parameter_error(fmus, tmp_path, fmu, name, value, step, message):
+    """libcosim (libcosimpy 0.0.6) does not report an error status from a setter or from
+    ExitInitializationMode to its caller: the initial value is accepted (True), and at the
+    first step libcosim throws cosim::error on its worker thread, which nothing catches
+    (std::terminate, SIGABRT). What the FMU can do it does: the error status and the
+    logged reason naming the variable reach libcosim's log and the exception's what()."""
     pytest.importorskip("libcosimpy")
+    paths = {**fmus, **built_fmus(("BisoVehicle",))}
     script = tmp_path / "bad.py"
-    script.write_text(
-        "import sys\n"
-        "from libcosimpy.CosimExecution import CosimExecution\n"
-        "from libcosimpy.CosimSlave import CosimLocalSlave\n"
-        "ex = CosimExecution.from_step_size(step_size=5000000)\n"
-        f"i = ex.add_local_slave(CosimLocalSlave(fmu_path={str(fmus['BisoEstimator-fmi2'])!r}, instance_name='e'))\n"
-        "refs = {v.name.decode(): v.reference for v in ex.slave_variables(i)}\n"
-        "ex.real_initial_value(i, refs['fs_hz'], -1.0)\n"
-        "print('stepped', ex.step(), flush=True)\n")
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
-    assert "fs_hz not set: allowed >= 0, got -1" in done.stderr, done.stderr
+    script.write_text(_LIBCOSIM_SCRIPT)
+    done = subprocess.run([sys.executable, str(script), str(paths[fmu]), name, value, str(step)],
+                          capture_output=True, text=True, timeout=600)
+    assert "initial value True" in done.stdout and "stepped" not in done.stdout, done.stdout
+    assert done.returncode == -signal.SIGABRT, (done.returncode, done.stderr[-2000:])
+    assert "terminate called after throwing an instance of 'cosim::error'" in done.stderr
+    assert f"Model error: {message}" in done.stderr  # the exception's what()
+    assert f"[FMI status=error, category=logStatusError] {message}" in done.stdout  # libcosim's log
+
+
+def test_libcosim_refused_step_returns_false_with_the_reason(tmp_path):
+    pytest.importorskip("libcosimpy")
+    script = tmp_path / "step.py"
+    script.write_text(_LIBCOSIM_SCRIPT)
+    done = subprocess.run([sys.executable, str(script), str(built_fmus(("BisoVehicle",))["BisoVehicle-fmi2"]), "", "",
+                           "0.03"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and "stepped False" in done.stdout, done.stderr[-2000:]
+    assert "fmi2DoStep at t = 0.0 s refused (nothing computed)" in done.stdout  # libcosim's log
+    assert "allowed steps: n * 0.02 s" in done.stdout
+
+
+def test_libcosim_has_no_fmi3_and_says_so_in_its_last_error(fmus):
+    """libcosim imports FMI 1.0 and 2.0 only: for an FMI 3.0 file CosimLocalSlave holds a NULL
+    slave (libcosimpy does not check it: add_local_slave would crash the process) and
+    libcosim's last error names the reason."""
+    pytest.importorskip("libcosimpy")
+    from libcosimpy._internal import get_last_error_message
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    paths = {**fmus, **built_fmus(("BisoVehicle",))}
+    for name in ("BisoEstimator-fmi3", "BisoImuPlugin-fmi3", "BisoVehicle-fmi3"):
+        slave = CosimLocalSlave(fmu_path=str(paths[name]), instance_name="s")
+        assert not slave.ptr()
+        assert get_last_error_message() == f"Unsupported feature: Unsupported FMI version for FMU '{paths[name]}'"
 
 
 def test_libcosim_connects_vehicle_and_native_plugin_like_fmpy():
     pytest.importorskip("libcosimpy")
-    pytest.importorskip("pythonfmu")
     from biso_cosim.fmu.demos.libcosim import run_connected
     from biso_cosim.fmu.demos.master import CONNECTIONS
     from biso_cosim.fmu.variables import variables_of
 
     paths = {**built_fmus(("BisoEstimator", "BisoImuPlugin")), **built_fmus(("BisoVehicle",))}  # built once each
     record = ("estimate.q_wb.w", "estimate.q_wb.z", "gyro_b.z", "accel_b.x", "new_samples")
-    rec = run_connected(paths["BisoVehicle"], paths["BisoImuPlugin-fmi2"], duration_s=1.0, record=record)
+    rec = run_connected(paths["BisoVehicle-fmi2"], paths["BisoImuPlugin-fmi2"], duration_s=1.0, record=record)
     n = len(rec["plugin.gyro_b.z"])
     assert n == 50 and rec["plugin.new_samples"].sum() > 150
     # the same exchange in FMPy: libcosim gives the plug-in, at each step, the vehicle's
@@ -237,7 +285,7 @@ def test_libcosim_connects_vehicle_and_native_plugin_like_fmpy():
     start = {v.name: v.start for v in variables_of("BisoVehicle")}
     inputs = {o: start[o] for o in CONNECTIONS}
     out = []
-    with FmuInstance(paths["BisoVehicle"], "vehicle", start_values={"route": "figure8"}) as vehicle, \
+    with FmuInstance(paths["BisoVehicle-fmi2"], "vehicle", start_values={"route": "figure8"}) as vehicle, \
             FmuInstance(paths["BisoImuPlugin-fmi2"], "plugin") as plugin:
         for _ in range(n):
             plugin.set({CONNECTIONS[o]: x for o, x in inputs.items()})
@@ -336,3 +384,25 @@ def test_native_fmus_run_in_a_python_without_biso_cosim(fmus, bare_python, tmp_p
         want = ([ref_est[0], ref_est[3]] if "Estimator" in key
                 else [ref_plug[OUTPUTS.index("estimate.q_wb.w")], ref_plug[OUTPUTS.index("estimate.q_wb.z")]])
         assert value == want, key
+
+
+def test_vehicle_runs_in_a_python_without_biso_cosim(bare_python, tmp_path):
+    """BisoVehicle in FMPy on a Python that cannot import biso_cosim (an empty environment):
+    the shell adds the building environment's site-packages (resources/python.txt) and the
+    run equals the one in this process; the process exits cleanly."""
+    path = built_fmus(("BisoVehicle",))["BisoVehicle-fmi2"]
+    outputs = ["truth.speed", "estimate.q_wb.w", "estimate.q_wb.z"]
+    script = tmp_path / "vehicle.py"
+    script.write_text(
+        "import json, sys\n"
+        "from fmpy import simulate_fmu\n"
+        "r = simulate_fmu(sys.argv[1], stop_time=0.4, step_size=0.02, start_values={'route': 'slalom'},\n"
+        f"                 output={outputs!r})\n"
+        "print('RESULT ' + json.dumps([list(map(float, row)) for row in r]))\n")
+    done = subprocess.run([str(bare_python), str(script), str(path)], capture_output=True, text=True,
+                          env={"PATH": os.defpath}, timeout=900, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(next(line for line in done.stdout.splitlines() if line.startswith("RESULT "))[7:])
+    with FmuInstance(path, "here", start_values={"route": "slalom"}) as fmu:
+        ref = [fmu.step(0.02) and fmu.get(outputs) for _ in range(20)]
+    assert [row[1:] for row in rows[1:]] == ref

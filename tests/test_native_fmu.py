@@ -187,6 +187,29 @@ def test_estimator_parameters_speed_flags_and_euler_outputs(fmus, version):
 
 
 @pytest.mark.parametrize("version", VERSIONS)
+def test_euler_outputs_are_the_same_however_seldom_they_are_read(fmus, version):
+    """estimate.roll/pitch/yaw/heading are derived outputs, computed from estimate.q_wb.*
+    when first read after a step: read every step, only at the end, after a state restore or
+    a serialized state, they are the same numbers."""
+    motion = make_motion("tumble", duration_s=0.3, fs_hz=FS)
+    gyro, accel, mag = _noisy(motion, seed=3)
+    euler = ["estimate.roll", "estimate.pitch", "estimate.yaw", "estimate.heading"]
+    path = fmus[f"BisoEstimator-{version}"]
+    with FmuInstance(path, "every", start_values={"estimator": "biso_plus"}) as every, \
+            FmuInstance(path, "seldom", start_values={"estimator": "biso_plus"}) as seldom:
+        assert every.get(euler) == [0.0, 0.0, 0.0, math.pi / 2]  # the identity's, before any step
+        ref = _run_estimator(every, gyro, accel, mag, names=EST_OUT + euler)
+        _run_estimator(seldom, gyro[:30], accel[:30], mag[:30])
+        state = seldom.get_state()  # taken while the angles were not yet computed
+        blob = seldom.serialize(state)
+        _run_estimator(seldom, gyro[30:], accel[30:], mag[30:])
+        assert seldom.get(euler) == ref[-1, 4:].tolist()
+        for restored in (state, seldom.deserialize(blob)):
+            seldom.set_state(restored)
+            assert seldom.get(euler) == ref[29, 4:].tolist()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
 def test_bad_samples_are_flagged_never_nan_out(fmus, version):
     """NaN, zero and saturated samples, and the sensor's flags: the estimator's own handling
     (flags, no correction from that sample), exactly as in Python; never NaN out."""

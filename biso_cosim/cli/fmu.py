@@ -20,8 +20,9 @@ def register(sub: argparse._SubParsersAction) -> None:
             "FMUs of biso_cosim for other co-simulation tools. Native (C99, no Python needed, compiled here by "
             "the system C compiler, with their C sources inside): BisoEstimator-fmi2/-fmi3.fmu (an attitude "
             "estimator) and BisoImuPlugin-fmi2/-fmi3.fmu (virtual MPU-9250 + estimator for your vehicle). "
-            "Python-based (pythonfmu, FMI 2.0): BisoVehicle.fmu, the whole MuJoCo co-simulation, which runs on "
-            "the Python that loads it and needs biso_cosim there (docs/fmu.md)."
+            "Python-based (our C shell embedding CPython, FMI 2.0 and 3.0): BisoVehicle-fmi2/-fmi3.fmu, the whole "
+            "MuJoCo co-simulation, which runs on the Python of the host process (or starts the Python that built "
+            "it) and needs biso_cosim there (docs/fmu.md)."
         ),
     )
     commands = p.add_subparsers(dest="fmu_command", metavar="ACTION", required=True)
@@ -76,8 +77,6 @@ def build(args: argparse.Namespace) -> int:
             paths += build_fmu(name, args.out, extra_profiles=profiles if name in _NATIVE else ())
         except CompilerNotFound as exc:
             raise UserError(str(exc)) from None
-        except ImportError as exc:  # pythonfmu is an optional dependency, needed by BisoVehicle only
-            raise UserError(f"building {name}.fmu needs pythonfmu: pip install 'biso_cosim[fmu]' ({exc})") from None
         except ValueError as exc:  # a profile file the model refuses
             raise UserError(str(exc)) from None
     if args.no_validate:

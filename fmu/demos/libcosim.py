@@ -81,10 +81,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=10.0, metavar="S")
     args = parser.parse_args(argv)
     paths = built_fmus(("BisoImuPlugin", "BisoVehicle"))
-    rec = run_connected(paths["BisoVehicle"], paths["BisoImuPlugin-fmi2"], route=args.route, duration_s=args.duration)
+    rec = run_connected(paths["BisoVehicle-fmi2"], paths["BisoImuPlugin-fmi2"], route=args.route, duration_s=args.duration)
     # the vehicle alone in FMPy gives the same truth, step by step
     n = len(rec["vehicle.truth.q_wb.w"])
-    with FmuInstance(paths["BisoVehicle"], "fmpy", start_values={"route": args.route}) as fmu:
+    with FmuInstance(paths["BisoVehicle-fmi2"], "fmpy", start_values={"route": args.route}) as fmu:
         ref = []
         for _ in range(n):
             assert fmu.step(0.02)

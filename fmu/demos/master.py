@@ -2,7 +2,7 @@
 
 ``python -m biso_cosim.fmu.demos.master [--route figure8] [--duration 30] [--out fmu_demo.png]``
 
-``BisoVehicle.fmu`` drives the route; after each of its steps its truth outputs (angular rate,
+``BisoVehicle-fmi2.fmu`` drives the route; after each of its steps its truth outputs (angular rate,
 specific force, attitude, position, velocity at its latest sensor sample) are set as the
 inputs of the native ``BisoImuPlugin-fmi2.fmu`` (or ``-fmi3``), which runs its own MPU-9250 (another seed) and estimator on
 them, as it would on a host's vehicle model. The plot shows the true attitude, the vehicle's
@@ -104,26 +104,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=30.0, metavar="S", help="simulated seconds (default 30)")
     parser.add_argument("--estimator", default="biso", help="estimator of both FMUs (default biso)")
     parser.add_argument("--fmus", default=None, metavar="DIR",
-                        help="directory with BisoVehicle.fmu and BisoImuPlugin-fmi2.fmu (default: build them now)")
+                        help="directory with BisoVehicle-fmi2.fmu and BisoImuPlugin-fmi2.fmu (default: build them now)")
     parser.add_argument("--out", default="fmu_demo.png", metavar="PNG", help="plot file (default fmu_demo.png)")
     args = parser.parse_args(argv)
     if not (math.isfinite(args.duration) and args.duration > 0):
         parser.error("--duration must be positive")
     if args.fmus:
         folder = Path(args.fmus)
-        paths = {name: folder / f"{name}.fmu" for name in ("BisoVehicle", "BisoImuPlugin-fmi2")}
+        paths = {name: folder / f"{name}.fmu" for name in ("BisoVehicle-fmi2", "BisoImuPlugin-fmi2")}
     else:
         from biso_cosim.fmu.build import built_fmus
 
         paths = built_fmus(("BisoImuPlugin", "BisoVehicle"))
-    rec = connect_vehicle_and_plugin(paths["BisoVehicle"], paths["BisoImuPlugin-fmi2"], route=args.route,
+    rec = connect_vehicle_and_plugin(paths["BisoVehicle-fmi2"], paths["BisoImuPlugin-fmi2"], route=args.route,
                                      duration_s=args.duration, estimator=args.estimator)
     rms = {a: math.degrees(float(np.sqrt(np.mean(rec[f"plugin.error.{a}"] ** 2))))
            for a in ("roll", "pitch", "heading")}
     print(f"{len(rec['vehicle.sample_time'])} steps of 20 ms: BisoVehicle -> BisoImuPlugin ({args.route}, "
           f"{args.estimator}); plug-in estimate RMS error roll {rms['roll']:.3f}°, pitch {rms['pitch']:.3f}°, "
           f"heading {rms['heading']:.3f}°")
-    print(f"wrote {_plot(rec, Path(args.out), f'{args.route}: BisoVehicle.fmu truth -> BisoImuPlugin.fmu (FMPy)')}")
+    print(f"wrote {_plot(rec, Path(args.out), f'{args.route}: BisoVehicle-fmi2.fmu truth -> BisoImuPlugin-fmi2.fmu (FMPy)')}")
     return 0
 
 

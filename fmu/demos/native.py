@@ -3,8 +3,8 @@
 ``python -m biso_cosim.fmu.demos.native`` builds the native ``BisoEstimator`` FMUs, compiles
 the C master against the FMI headers of ``biso_cosim/fmu/native/include``, runs both FMI
 versions in it (no Python, no environment variable: the FMUs are C) and compares the output
-with ``estimate_attitude``. A Python-based FMU (BisoVehicle) in a native host needs the
-environment ``python_environment()`` gives.
+with ``estimate_attitude``. The Python-based BisoVehicle runs in it too: its C shell starts
+the Python named in its resources/python.txt (tests/test_fmu.py).
 """
 
 from __future__ import annotations
@@ -13,38 +13,15 @@ import argparse
 import os
 import subprocess
 import sys
-import sysconfig
 import tempfile
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["python_environment", "compile_master", "run_native", "NativeRun", "main"]
+__all__ = ["compile_master", "run_native", "NativeRun", "main"]
 
 SOURCE = Path(__file__).with_name("fmu_master.c")
-
-
-def python_environment() -> dict[str, str]:
-    """Environment variables a native host needs for a pythonfmu FMU (BisoVehicle) running on
-    this Python.
-
-    The FMU's binary does not link the Python library (it expects the host to provide it), so
-    ``LD_PRELOAD`` names this Python's shared library; ``PYTHONPATH`` names the directories
-    of the installed packages (biso_cosim, numpy, numba, mujoco ...); ``PYTHONHOME`` the
-    standard library of this Python (a venv's base installation).
-    """
-    libdir = sysconfig.get_config_var("LIBDIR")
-    library = sysconfig.get_config_var("LDLIBRARY")
-    if not sysconfig.get_config_var("Py_ENABLE_SHARED") or not library.endswith(".so"):
-        raise RuntimeError(f"this Python ({sys.executable}) has no shared library; a native host needs one "
-                           "(build Python with --enable-shared, or use a distribution's libpython3.X.so)")
-    site_dirs = [p for p in sys.path if p.endswith("site-packages")]
-    return {
-        "LD_PRELOAD": str(Path(libdir) / library),
-        "PYTHONHOME": sys.base_prefix,
-        "PYTHONPATH": os.pathsep.join(site_dirs),
-    }
 
 
 def compile_master(out_dir: str | Path, extra: Sequence[str] = ()) -> Path:

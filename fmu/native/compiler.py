@@ -62,20 +62,22 @@ def compile_shared(sources: Sequence[Path], out: Path, include_dirs: Sequence[Pa
 
 
 def compile_objects(sources: Sequence[Path], out_dir: Path, include_dirs: Sequence[Path] = (),
-                    hidden: bool = True) -> list[Path]:
+                    hidden: bool = True, extra: Sequence[str] = ()) -> list[Path]:
     """Object files (position independent) of C sources, one per source, in ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     objects = [out_dir / (Path(s).stem + ".o") for s in sources]
     for src, obj in zip(sources, objects):
         args = [*find_compiler().split(), *CFLAGS, "-fPIC", *(["-fvisibility=hidden"] if hidden else []),
-                *(f"-I{d}" for d in include_dirs), "-c", str(src), "-o", str(obj)]
+                *(f"-I{d}" for d in include_dirs), *extra, "-c", str(src), "-o", str(obj)]
         _run(args)
     return objects
 
 
-def link_shared(objects: Sequence[Path], out: Path) -> Path:
-    """A shared library from object files, linked against libm only."""
-    _run([*find_compiler().split(), "-shared", *(str(o) for o in objects), "-o", str(out), "-lm"])
+def link_shared(objects: Sequence[Path], out: Path, libraries: Sequence[str] = ("m",),
+                extra: Sequence[str] = ()) -> Path:
+    """A shared library from object files, linked against ``libraries`` (libm only by default)."""
+    _run([*find_compiler().split(), "-shared", *(str(o) for o in objects), "-o", str(out),
+          *(f"-l{lib}" for lib in libraries), *extra])
     return out
 
 

@@ -32,9 +32,10 @@ NATIVE_FMUS = {
 
 CAPABILITIES = {
     # the estimator takes any whole number of sample periods per step; the plug-in's truth
-    # rate is fixed by its first step
+    # rate is fixed by its first step; the vehicle takes any whole number of control periods
     "BisoEstimator": {"canHandleVariableCommunicationStepSize": True},
     "BisoImuPlugin": {"canHandleVariableCommunicationStepSize": False},
+    "BisoVehicle": {"canHandleVariableCommunicationStepSize": True},
 }
 
 SUMMARY = {
@@ -43,14 +44,21 @@ SUMMARY = {
     "BisoImuPlugin": "Virtual MPU-9250 + AK8963 (registers, DLPF, rates, errors, quantization) and an attitude "
                      "estimator of biso_cosim in C, for another simulator's vehicle: true motion in; readings, raw "
                      "registers, flags, estimate and its error out. Native: needs no Python.",
+    "BisoVehicle": "The biso_cosim co-simulation: MuJoCo car on a scripted route (or driven by the inputs), virtual "
+                   "MPU-9250 and attitude estimator in the loop; truth, readings and estimate out. Python-based: its "
+                   "C shell runs the model on the Python of the host process, or starts the Python that built it; "
+                   "that Python must import biso_cosim and its dependencies.",
 }
-DEFAULT_EXPERIMENT = {"BisoEstimator": (10.0, 0.005), "BisoImuPlugin": (10.0, 0.001)}
+# (stop time, step size): loop600, the vehicle's default route, and 10 s at rest, as biso-cosim run
+DEFAULT_EXPERIMENT = {"BisoEstimator": (10.0, 0.005), "BisoImuPlugin": (10.0, 0.001), "BisoVehicle": (580.0, 0.02)}
 
 _TYPES = {"Real": 0, "Integer": 1, "Boolean": 2, "String": 3}
 _CAUSALITY = {"parameter": 0, "input": 1, "output": 2}
 _VARIABILITY = {"fixed": 0, "tunable": 1, "discrete": 2, "continuous": 3}
-# key heads with a generic meaning in the C core (fmu_core.h BISO_ROLE_*); others are the model's
-_ROLES = {"param": 1, "given": 2, "register": 3, "estimator": 4}
+# key heads with a generic meaning in the C core (fmu_core.h BISO_ROLE_*); others are the model's.
+# "euler_est" (estimate.roll, pitch, yaw, heading) are derived outputs: the model computes them
+# from its other outputs when a host first reads one after a step (model_derive_outputs)
+_ROLES = {"param": 1, "given": 2, "register": 3, "estimator": 4, "euler_est": 5}
 _PREFIX = {"Real": "R", "Integer": "I", "Boolean": "B", "String": "S"}
 STRING_LENGTH = 256
 
@@ -184,7 +192,8 @@ def _log_categories(parent: ET.Element) -> None:
 
 
 def model_description(fmu: str, fmi_version: int, source_files: Sequence[str] = ()) -> bytes:
-    """``modelDescription.xml`` of a native FMU for FMI 2.0 (2) or FMI 3.0 (3)."""
+    """``modelDescription.xml`` of one of our FMUs (native or Python-based) for FMI 2.0 (2)
+    or FMI 3.0 (3)."""
     variables = list(variables_of(fmu))
     stop, step = DEFAULT_EXPERIMENT[fmu]
     caps = {"needsExecutionTool": False, "canBeInstantiatedOnlyOncePerProcess": False,

@@ -296,6 +296,10 @@ int biso_end_set(biso_instance *inst, int status) {
 int biso_get_real(biso_instance *inst, unsigned vr, double *value) {
     const biso_var_info *v = biso_var(inst, vr, BISO_REAL, inst->function);
     if (!v) return BISO_ERROR;
+    if (v->role == BISO_ROLE_DERIVED && inst->core.derived_stale) {
+        model_derive_outputs(inst);
+        inst->core.derived_stale = 0;
+    }
     *value = inst->core.real[v->slot];
     return BISO_OK;
 }

@@ -25,6 +25,7 @@ typedef struct {
     int phase;
     double time;
     int tunable_changed; /* a tunable parameter was set in step mode: apply after the setter */
+    int derived_stale;   /* the derived outputs (BISO_ROLE_DERIVED) lag the others: compute them when read */
     biso_model model;
 } biso_core;
 
@@ -99,5 +100,8 @@ int model_configure(biso_instance *inst, char *msg, size_t len);
 int model_apply_tunables(biso_instance *inst, char *msg, size_t len);
 /* one communication step from t of size h: BISO_OK, or BISO_ERROR with msg (nothing changed) */
 int model_step(biso_instance *inst, double t, double h, char *msg, size_t len);
+/* write the derived outputs (BISO_ROLE_DERIVED) from the others; the core calls it when one is
+ * read while core.derived_stale is set (a model sets it when it changes what they derive from) */
+void model_derive_outputs(biso_instance *inst);
 
 #endif

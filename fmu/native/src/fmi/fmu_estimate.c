@@ -95,18 +95,24 @@ double biso_heading(double yaw) {
     return h >= 2.0 * PI ? 0.0 : h;
 }
 
-void biso_put_estimate(biso_instance *inst, const biso_est_output *out) {
+void biso_derive_estimate(biso_instance *inst) {
     double *r = inst->core.real;
-    double roll, pitch, yaw;
-    r[R_ESTIMATE_Q_WB_W] = out->q_wb[0];
-    r[R_ESTIMATE_Q_WB_X] = out->q_wb[1];
-    r[R_ESTIMATE_Q_WB_Y] = out->q_wb[2];
-    r[R_ESTIMATE_Q_WB_Z] = out->q_wb[3];
-    biso_euler_from_q(out->q_wb, &roll, &pitch, &yaw);
+    double q[4], roll, pitch, yaw;
+    q[0] = r[R_ESTIMATE_Q_WB_W], q[1] = r[R_ESTIMATE_Q_WB_X], q[2] = r[R_ESTIMATE_Q_WB_Y], q[3] = r[R_ESTIMATE_Q_WB_Z];
+    biso_euler_from_q(q, &roll, &pitch, &yaw);
     r[R_ESTIMATE_ROLL] = roll;
     r[R_ESTIMATE_PITCH] = pitch;
     r[R_ESTIMATE_YAW] = yaw;
     r[R_ESTIMATE_HEADING] = biso_heading(yaw);
+}
+
+void biso_put_estimate(biso_instance *inst, const biso_est_output *out) {
+    double *r = inst->core.real;
+    r[R_ESTIMATE_Q_WB_W] = out->q_wb[0];
+    r[R_ESTIMATE_Q_WB_X] = out->q_wb[1];
+    r[R_ESTIMATE_Q_WB_Y] = out->q_wb[2];
+    r[R_ESTIMATE_Q_WB_Z] = out->q_wb[3];
+    inst->core.derived_stale = 1;
     inst->core.integer[I_ESTIMATE_FLAGS] = (int32_t)out->flags;
     r[R_ESTIMATE_GYRO_BIAS_B_X] = out->gyro_bias_b[0];
     r[R_ESTIMATE_GYRO_BIAS_B_Y] = out->gyro_bias_b[1];

@@ -12,8 +12,11 @@ int biso_estimator_kind(biso_instance *inst);
 /* the kind's parameter vector from the variables (an optional one NaN unless its has_
  * flag is true); returns how many variables of other estimators differ from their start */
 int biso_estimator_params(biso_instance *inst, int kind, double *params);
-/* estimate.* from an estimator output */
+/* estimate.* from an estimator output; the Euler angles and heading (derived outputs) are
+ * marked stale and computed by biso_derive_estimate when a host reads one */
 void biso_put_estimate(biso_instance *inst, const biso_est_output *out);
+/* estimate.roll, pitch, yaw, heading from estimate.q_wb.* */
+void biso_derive_estimate(biso_instance *inst);
 
 /* frames._q_from_euler (intrinsic z-y-x), _qnormalize, _euler_from_q, _qmul */
 void biso_q_from_euler(double roll, double pitch, double yaw, double q[4]);

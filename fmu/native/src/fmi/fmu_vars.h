@@ -5,8 +5,9 @@
 enum { BISO_REAL, BISO_INTEGER, BISO_BOOLEAN, BISO_STRING };
 enum { BISO_PARAMETER, BISO_INPUT, BISO_OUTPUT };
 enum { BISO_FIXED, BISO_TUNABLE, BISO_DISCRETE, BISO_CONTINUOUS };
-/* what a variable is to the generic core; BISO_ROLE_MODEL: only the model knows */
-enum { BISO_ROLE_MODEL, BISO_ROLE_PARAM, BISO_ROLE_GIVEN, BISO_ROLE_REGISTER, BISO_ROLE_ESTIMATOR };
+/* what a variable is to the generic core; BISO_ROLE_MODEL: only the model knows;
+ * BISO_ROLE_DERIVED: an output the model computes from its others when it is read */
+enum { BISO_ROLE_MODEL, BISO_ROLE_PARAM, BISO_ROLE_GIVEN, BISO_ROLE_REGISTER, BISO_ROLE_ESTIMATOR, BISO_ROLE_DERIVED };
 
 typedef struct {
     const char *name;

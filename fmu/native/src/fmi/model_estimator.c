@@ -89,6 +89,8 @@ static void rotate(const double r[3][3], const double *v, double *out) {
     for (i = 0; i < 3; i++) out[i] = r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2];
 }
 
+void model_derive_outputs(biso_instance *inst) { biso_derive_estimate(inst); }
+
 int model_step(biso_instance *inst, double t, double h, char *msg, size_t len) {
     biso_model *m = &inst->core.model;
     const double *r = inst->core.real;

@@ -230,6 +230,8 @@ static const char *truth_names[] = {"omega_b.x", "omega_b.y", "omega_b.z", "spec
                                     "specific_force_b.y", "specific_force_b.z", "q_wb.w", "q_wb.x", "q_wb.y", "q_wb.z",
                                     "pos_w.x", "pos_w.y", "pos_w.z", "vel_w.x", "vel_w.y", "vel_w.z", "temperature"};
 
+void model_derive_outputs(biso_instance *inst) { biso_derive_estimate(inst); }
+
 int model_step(biso_instance *inst, double t, double h, char *msg, size_t len) {
     biso_model *m = &inst->core.model;
     double *r = inst->core.real;
