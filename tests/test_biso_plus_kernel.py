@@ -272,22 +272,42 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
     ex = ey = ez = 0.0
     if acc_ok:
         fx, fy, fz = ax - comp[0], ay - comp[1], az - comp[2]
-        d = abs(math.sqrt(fx * fx + fy * fy + fz * fz) - c[C["g"]]) * c[C["inv_gate_g"]]
+        gate = c[C["inv_gate_g"]] if v_ok else c[C["inv_gate_free_g"]]
+        d = abs(math.sqrt(fx * fx + fy * fy + fz * fz) - c[C["g"]]) * gate
         weight = 1.0 / (1.0 + d * d)
         if weight < 0.5:
             flags |= fl.ACCEL_GATED
         alpha = c[C["a_accv"]] if v_ok else c[C["a_acc"]]
-        if h > alpha * (t + h):
+        start = h > alpha * (t + h)
+        if start:
             alpha = h / (t + h)
-        alpha *= weight
         fi = _qrot(*qi, fx, fy, fz)
         flp = S["accel_lp_i"]
-        for k in range(3):
-            st[flp + k] = st[flp + k] + alpha * (fi[k] - st[flp + k])
+        b0, b1, b2, a1, a2 = c[C["acc_bw"]:C["acc_bw"] + 5]
+        if b0 != 0.0 and not (v_ok or start):  # Butterworth, transposed direct form II
+            z1, z2 = S["accel_bw_i"], S["accel_bw_i"] + 3
+            if st[S["accel_bw_ready"]] == 0.0:  # from the first order's output, at its steady state
+                st[S["accel_bw_ready"]] = 1.0
+                for k in range(3):
+                    st[z1 + k] = (1.0 - b0) * st[flp + k]
+                    st[z2 + k] = (b2 - a2) * st[flp + k]
+            if weight < 1.0:
+                fi = tuple(st[flp + k] + weight * (fi[k] - st[flp + k]) for k in range(3))
+            for k in range(3):
+                y = b0 * fi[k] + st[z1 + k]
+                st[z1 + k] = b1 * fi[k] - a1 * y + st[z2 + k]
+                st[z2 + k] = b2 * fi[k] - a2 * y
+                st[flp + k] = y
+        else:
+            st[S["accel_bw_ready"]] = 0.0
+            alpha *= weight
+            for k in range(3):
+                st[flp + k] = st[flp + k] + alpha * (fi[k] - st[flp + k])
         nx, ny, nz = _qrot(*qc, *st[flp:flp + 3])
         ang = _angle_over_sine(nx * nx + ny * ny, nz)
         ex, ey = ny * ang, -nx * ang
     # heading, disturbance, offset
+    mag_w = 1.0
     if mag_ok:
         if c[C["offset_on"]] != 0.0 and bpd < c[C["offset_bias2"]]:
             st[S["offset_count"]] += 1.0
@@ -311,6 +331,12 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
         dcos = mh * c0 - mwz * s0
         dsin = -mwz * c0 - mh * s0
         bn = st[S["field_norm"]]
+        if not v_ok:  # the heading's weight σ_h²/(σ_h² + κ D + (|B| |ω| τ_m)²)
+            dn = norm - bn
+            st[S["mag_disturbance"]] += c[C["a_dist"]] * (dn * dn - st[S["mag_disturbance"]])
+            r_head = c[C["r_head"]]
+            mag_w = r_head / (r_head + c[C["kappa"]] * st[S["mag_disturbance"]]
+                              + bn * bn * (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * c[C["tau_m2"]])
         if abs(norm - bn) > c[C["b_tol"]] * bn or dcos < c[C["cos_dip_tol"]] * norm:
             flags |= fl.MAG_DISTURBED
             st[S["mag_rejected_s"]] += h
@@ -334,6 +360,8 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
     kt, kh, kp = c[C["k_t"]], c[C["k_h"]], c[C["k_p"]]
     if kh * (t + c[C["t0"]]) < 1.0:
         kh = 1.0 / (t + c[C["t0"]])
+    if mag_w != 1.0:
+        kh *= mag_w
     u = (kt * ex + kp * (ez - ey), kt * ey + kp * (ex - ez), kh * ez + kp * (ey - ex))
     if u != (0.0, 0.0, 0.0):
         qc = _qmul(*_qexp(u[0] * h, u[1] * h, u[2] * h), *_unit(*qc))
@@ -402,6 +430,10 @@ CASES = {
         "dirty", fl.ACCEL_COMPENSATED | fl.SATURATED | fl.GYRO_INVALID | fl.ACCEL_INVALID | fl.MAG_INVALID, True),
     "magnet, cross-link and given field": (
         {"k_p": 3.0, "field_norm_ut": 50.0, "dip_rad": 1.1}, "magnet", fl.MAG_DISTURBED, False),
+    "tumble, gated first order, time skew": (
+        {"tilt_lp_order": 1, "accel_gate_free": 1.0, "mag_time_skew_s": 0.02}, "tumble", 0, False),
+    "tumble, gated Butterworth, time skew": (
+        {"accel_gate_free": 0.003, "mag_time_skew_s": 0.02}, "tumble", fl.ACCEL_GATED, False),
     "static with bias (rest), q0 given": ({"estimate_mag_offset": False, "tau_acc_s": 0.0}, "static", fl.REST, False),
 }
 

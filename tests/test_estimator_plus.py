@@ -76,9 +76,11 @@ def test_magnet_is_detected_and_does_not_turn_the_heading():
 
 def test_magnetometer_offset_is_estimated():
     """A 6 µT offset turns the heading by ~20° at first; once the offset is learned the heading
-    follows the magnetometer back (at k_heading = 0.05/s: within a minute or so)."""
+    follows the magnetometer back (at k_heading = 0.05/s: within a minute or so, and another
+    minute without a speed input, where the norm error of the unlearned offset counts as a
+    disturbance D and lowers the heading gain until the offset is learned)."""
     offset = np.array([6.0, -4.0, 3.0])  # µT, body axes
-    m = mo.make_motion("tumble", 120.0, 200.0, rate_scale=0.5)
+    m = mo.make_motion("tumble", 180.0, 200.0, rate_scale=0.5)
     est = make_estimator("biso_plus", 200.0)
     out = est.update(m.omega_b, m.specific_force_b, m.mag_b + offset)
     np.testing.assert_allclose(est.get_state()["mag_offset_b"], offset, atol=0.3)

@@ -224,7 +224,10 @@ _PARAM_SETS = {
                   {"field_norm_ut": 49.0, "dip_rad": 1.2}, {"estimate_mag_offset": False},
                   {"declination_rad": 0.15, "speed_point_b_m": (-1.2, 0.1, -0.3)},
                   {"mag_offset_interval_s": 0.0, "mag_dip_tol_rad": 4.0, "bias_heading_factor": 0.0},
-                  {"tau_speed_s": 0.0, "rest_time_s": 0.0, "gyro_range_rad_s": 3.0}],
+                  {"tau_speed_s": 0.0, "rest_time_s": 0.0, "gyro_range_rad_s": 3.0},
+                  {"tilt_lp_order": 1, "accel_gate_free": 2.0, "mag_time_skew_s": 0.02},
+                  {"accel_gate_free": 0.01, "mag_time_skew_s": 0.01, "mag_disturbance_gain": 0.0,
+                   "tau_mag_disturbance_s": 0.0, "mag_heading_noise_ut": 4.0}],
 }
 _GENERAL = {"biso": [{"pattern": 13}, {"pattern": 13, "k": 20.0, "k_p": 6.0, "latitude_rad": 0.8}]}
 
@@ -363,7 +366,8 @@ _CHANGES = {
     "biso_plus": [{"k_tilt": 2.0}, {"k_heading": 0.5, "k_p": 1.0}, {"estimate_mag_offset": False},
                   {"field_norm_ut": 50.0, "dip_rad": 1.1}, {"field_norm_ut": None, "dip_rad": None},
                   {"declination_rad": 0.1, "speed_point_b_m": (-1.0, 0.0, 0.0)}, {"tau_acc_s": 0.5},
-                  {"mag_offset_interval_s": 0.02, "bias_forgetting_s": 10.0}],
+                  {"mag_offset_interval_s": 0.02, "bias_forgetting_s": 10.0},
+                  {"tilt_lp_order": 1, "mag_disturbance_gain": 10.0}, {"tilt_lp_order": 2, "accel_gate_free": 1.0}],
 }
 
 

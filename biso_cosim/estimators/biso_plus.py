@@ -19,9 +19,16 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   filtered in a quasi-inertial frame I (the gyro's own strapdown frame, as VQF does: Laidig &
   Seel 2023), where gravity is constant and zero-mean accelerations average out without
   lag from the vehicle's rotation; samples whose |f| is far from g are down-weighted (gating);
+  without a speed input (a general AHRS: handheld motion, BROAD, Laidig et al. 2021) the
+  low-pass is second order (VQF's Butterworth: fast translations put specific force of a few
+  Hz into the tilt reference, which a first order passes 10x more) and ungated (the
+  uncompensated |f| leaves g for the whole of a long motion, and a gate froze the correction);
 * **magnetic disturbance detection**: the field's norm and dip (with the estimated tilt)
   against the expected field (learned while undisturbed, or given); a disturbed field is not
-  used for heading, nor for learning the expected field;
+  used for heading, nor for learning the expected field; without a speed input the heading
+  gain is also weighted as by a measurement variance σ_h² + κ D + (|B| |ω| τ_m)², with D a
+  low-pass of (|m − o| − |B|)² (a magnet near the sensor changes the norm where it turns the
+  field, below the rejection threshold too) and an optional time-skew term under rotation;
 * **hard-iron (offset) estimation**: ``m = R_Ibᵀ B_I + o`` is linear in the field in the
   I frame and the offset o, with R_Ib from the gyro strapdown alone (no feedback from the
   heading correction): a six-state Kalman filter with random walks, decimated, with its own
@@ -94,11 +101,44 @@ class BisoPlusParams:
         3.0, symbol="γ", unit="",
         doc="gating: a sample with ||f| − g| = d·g enters the low-pass with weight 1/(1 + (d/γ)²)",
         source="measured")
+    tilt_lp_order: int = param(
+        2, symbol="n_a", unit="",
+        doc="order of the low-pass of the specific force in I without a speed input: 1 (first order, "
+            "as with a speed input) or 2 (Butterworth, −40 dB/decade: the specific force of fast "
+            "handheld translations, a few Hz, is attenuated 100x per decade instead of 10x)",
+        source="VQF (Laidig & Seel 2023) §3.2, second-order filter of the accelerometer in I")
+    accel_gate_free: float | None = param(
+        None, symbol="γ_f", unit="",
+        doc="the gate γ without a speed input; None = no gate (the uncompensated |f| departs from g "
+            "during all of a long motion, and a gate would freeze the tilt correction then)",
+        source="measured (BROAD, docs/estimators.md)")
     # -- heading
     k_heading: float = param(
         0.05, symbol="k_h", unit="1/s",
         doc="positional correction gain of heading toward the magnetometer (at least 1/(t + τ_a) "
             "during the start)", source="measured")
+    mag_heading_noise_ut: float = param(
+        10.0, symbol="σ_h", unit="µT",
+        doc="nominal noise of the field in the heading correction: without a speed input k_h is "
+            "scaled by σ_h²/(σ_h² + κ D + (|B| |ω| τ_m)²), a measurement variance inflated by a "
+            "disturbance and by fast rotation", source="measured with κ (only κ/σ_h² and τ_m/σ_h matter)")
+    mag_disturbance_gain: float = param(
+        100.0, symbol="κ", unit="",
+        doc="weight of the disturbance measure D = LP[(|m − o| − |B|)²] (µT²) in the heading "
+            "variance: a nearby magnet changes the field's norm wherever it deflects the direction",
+        source="measured (BROAD, docs/estimators.md)")
+    tau_mag_disturbance_s: float = param(
+        0.2, symbol="τ_D", unit="s",
+        doc="time constant of the low-pass of the disturbance measure D (short: a magnet's approach "
+            "takes a fraction of a second, and D should follow it)",
+        source="measured")
+    mag_time_skew_s: float = param(
+        0.0, symbol="τ_m", unit="s",
+        doc="effective time skew of the magnetometer against the gyro (AK8963 sampling at 100 Hz or "
+            "below, read late): under a rotation ω the field it reports is off by about |B| |ω| τ_m; "
+            "0 = not modelled (measured on BROAD: 0.01–0.02 s lowers the fast-rotation trials' error "
+            "and raises the combined and magnet trials' more)",
+        source="AK8963 datasheet §6.4 (measurement time); measured (docs/estimators.md)")
     # -- cross-link
     k_p: float = param(
         0.0, symbol="k_p", unit="1/s",
@@ -198,12 +238,13 @@ STATE_LAYOUT = (
     ("rest_accel_lp", 3), ("rest_time_s", 1), ("speed_prev", 1), ("dvdt", 1), ("speed_prev_ok", 1),
     ("gyro_prev", 3), ("angular_accel_lp", 3), ("mag_offset_b", 3), ("field_i", 3), ("offset_cov", 36),
     ("offset_count", 1), ("field_norm", 1), ("field_dip", 1), ("field_known", 1), ("mag_rejected_s", 1),
-    ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2),
+    ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2), ("accel_bw_i", 6), ("accel_bw_ready", 1),
+    ("mag_disturbance", 1),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
- _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -214,12 +255,14 @@ _COEF_LAYOUT = (
     ("offset_on", 1), ("q_offset", 1), ("q_field", 1), ("r_mag", 1), ("offset_n", 1), ("decl", 1),
     ("cdh", 1), ("sdh", 1), ("r_v", 3), ("a_speed", 1), ("g", 1), ("gyro_range", 1), ("accel_range", 1),
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
+    ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
  _C_BLIM, _C_REST_N, _C_A_REST, _C_REST_W, _C_REST_A, _C_REST_V, _C_BTOL, _C_DTOL, _C_REJ_N, _C_A_FIELD,
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
- _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL) = (
+ _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
+ _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -231,6 +274,18 @@ _FIELD_WALK_UT2_PER_S = 1.0
 def _alpha(h: float, tau: float) -> float:
     """Per-sample gain of a first-order low-pass with time constant tau (1 at tau = 0)."""
     return 1.0 if tau == 0.0 else 1.0 - math.exp(-h / tau)
+
+
+def _butterworth2(h: float, tau: float) -> tuple[float, float, float, float, float]:
+    """(b0, b1, b2, a1, a2) of the second-order Butterworth low-pass whose cut-off is
+    f_c = √2/(2π τ) (the −3 dB point of VQF's choice, so that its step settles like a first
+    order of time constant τ), discretised bilinearly with pre-warping at f_c (VQF, Laidig &
+    Seel 2023, filterCoeffs): y_k = b0 x_k + b1 x_{k−1} + b2 x_{k−2} − a1 y_{k−1} − a2 y_{k−2}."""
+    fc = math.sqrt(2.0) / (2.0 * math.pi * tau)
+    cw = math.tan(math.pi * fc * h)
+    d = cw * cw + math.sqrt(2.0) * cw + 1.0
+    b0 = cw * cw / d
+    return b0, 2.0 * b0, b0, 2.0 * (cw * cw - 1.0) / d, (1.0 - math.sqrt(2.0) * cw + cw * cw) / d
 
 
 def _kalman_noise(sigma: float, v: float) -> float:
@@ -245,11 +300,13 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     v = {}
     for name in ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "bias_limit_rad_s",
                  "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
-                 "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor"):
+                 "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
+                 "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s"):
         v[name] = check_finite(name, getattr(p, name), low=0.0)
     for name in ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
                  "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
-                 "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s"):
+                 "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s",
+                 "mag_heading_noise_ut"):
         v[name] = check_finite(name, getattr(p, name), low=0.0, low_open=True)
     if not isinstance(p.estimate_mag_offset, (bool, np.bool_)):
         raise TypeError(f"estimate_mag_offset must be True or False, got {p.estimate_mag_offset!r}")
@@ -257,6 +314,10 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     if rv.shape != (3,) or not np.all(np.isfinite(rv)):
         raise ValueError(f"speed_point_b_m must be 3 finite numbers (m, body axes), got {p.speed_point_b_m!r}")
     decl = check_finite("declination_rad", p.declination_rad)
+    if p.tilt_lp_order not in (1, 2) or isinstance(p.tilt_lp_order, bool):
+        raise ValueError(f"tilt_lp_order must be 1 or 2, got {p.tilt_lp_order!r}")
+    gate_free = (None if p.accel_gate_free is None else
+                 check_finite("accel_gate_free", p.accel_gate_free, low=0.0, low_open=True))
 
     c = np.zeros(_C_SIZE)
     c[_C_H] = h
@@ -294,6 +355,15 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
         c[_C_DIP_C], c[_C_DIP_S] = math.cos(c[_C_DIP]), math.sin(c[_C_DIP])
     # |δ| > θ_δ ⟺ cos δ < cos θ_δ for |δ| ≤ π (the dips lie in [−π/2, π/2]); θ_δ ≥ π: never
     c[_C_COS_DTOL] = math.cos(c[_C_DTOL]) if c[_C_DTOL] < math.pi else -2.0
+    # without a speed input: the Butterworth low-pass (b0, b1, b2, a1, a2; all 0: first order), the
+    # gate (0: none) and the heading variance σ_h² + κ D + (|B| |ω| τ_m)²
+    if p.tilt_lp_order == 2 and v["tau_acc_s"] > 0.0:
+        c[_C_BW:_C_BW + 5] = _butterworth2(h, v["tau_acc_s"])
+    c[_C_INV_GATE_FREE] = 0.0 if gate_free is None else 1.0 / (c[_C_G] * gate_free)
+    c[_C_R_HEAD] = v["mag_heading_noise_ut"] ** 2
+    c[_C_KAPPA] = v["mag_disturbance_gain"]
+    c[_C_A_DIST] = _alpha(h, v["tau_mag_disturbance_s"])
+    c[_C_TAU_M2] = v["mag_time_skew_s"] ** 2
     return c
 
 
@@ -569,6 +639,10 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     sd = 2.0 * c[_C_SDH] * c[_C_CDH]
     kt, kh0, kp, t0 = c[_C_KT], c[_C_KH], c[_C_KP], c[_C_T0]
     bp0, bv, bwm, bwv, bwr, blim = c[_C_BP0], c[_C_BV], c[_C_BWM], c[_C_BWV], c[_C_BWR], c[_C_BLIM]
+    bw_b0, bw_b1, bw_b2, bw_a1, bw_a2 = c[_C_BW], c[_C_BW + 1], c[_C_BW + 2], c[_C_BW + 3], c[_C_BW + 4]
+    bw_on = bw_b0 != 0.0
+    inv_gate_free = c[_C_INV_GATE_FREE]
+    r_head, kappa, a_dist, tau_m2 = c[_C_R_HEAD], c[_C_KAPPA], c[_C_A_DIST], c[_C_TAU_M2]
 
     # ---- state into locals
     lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
@@ -593,6 +667,9 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     off_k, bnorm, dip, field_ok, rej_t = st[_S_OFF_K], st[_S_BNORM], st[_S_DIP], st[_S_FIELD_OK], st[_S_REJ_T]
     dipc, dips = st[_S_DIP_CS], st[_S_DIP_CS + 1]
     t = st[_S_TIME]
+    j = _S_BW
+    bs0, bs1, bs2, bs3, bs4, bs5 = st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5]
+    bw_ok, mdist = st[_S_BW_OK], st[_S_MDIST]
 
     # from 0, the samples of the start skipped: an index known to be non-negative needs no
     # wraparound of negative indices at each array access
@@ -662,24 +739,49 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
 
         # ---- tilt error: low-pass of the (compensated) specific force in I, gated
         ex = ey = ez = 0.0  # rotation-vector error of the estimate, world frame
+        mag_w = 1.0  # weight of the heading correction (1: k_h as it is)
         if acc_ok:
             if v_ok:
                 fx, fy, fz = ax - comp_x, ay - comp_y, az - comp_z
                 fnorm = math.sqrt(fx * fx + fy * fy + fz * fz)
             else:  # (f − 0 = f, and |f|² is the input check's)
                 fx, fy, fz, fnorm = ax, ay, az, math.sqrt(f2)
-            d = abs(fnorm - g) * inv_gate_g
+            d = abs(fnorm - g) * (inv_gate_g if v_ok else inv_gate_free)
             weight = 1.0 / (1.0 + d * d)
             if weight < 0.5:
                 flags |= fl.ACCEL_GATED
             alpha = a_accv if v_ok else a_acc
-            if h > alpha * (t + h):  # start: a running mean (as VQF), α = max(α, h/(t + h))
+            start = h > alpha * (t + h)
+            if start:  # start: a running mean (as VQF), α = max(α, h/(t + h))
                 alpha = h / (t + h)
-            alpha *= weight
             fix, fiy, fiz = _qrot(qiw, qix, qiy, qiz, fx, fy, fz)
-            flp0 = flp0 + alpha * (fix - flp0)
-            flp1 = flp1 + alpha * (fiy - flp1)
-            flp2 = flp2 + alpha * (fiz - flp2)
+            if bw_on and not (v_ok or start):
+                # second order (without a speed input, after the start), transposed direct form II
+                # (bs0..2 and bs3..5: its two delays per axis), entered from the first-order
+                # output it continues at that output's steady state
+                if bw_ok == 0.0:
+                    bw_ok = 1.0
+                    bs0, bs1, bs2 = (1.0 - bw_b0) * flp0, (1.0 - bw_b0) * flp1, (1.0 - bw_b0) * flp2
+                    bs3, bs4, bs5 = (bw_b2 - bw_a2) * flp0, (bw_b2 - bw_a2) * flp1, (bw_b2 - bw_a2) * flp2
+                if weight < 1.0:  # gated: the input moved toward the output by the weight
+                    fix = flp0 + weight * (fix - flp0)
+                    fiy = flp1 + weight * (fiy - flp1)
+                    fiz = flp2 + weight * (fiz - flp2)
+                flp0 = bw_b0 * fix + bs0
+                flp1 = bw_b0 * fiy + bs1
+                flp2 = bw_b0 * fiz + bs2
+                bs0 = bw_b1 * fix - bw_a1 * flp0 + bs3
+                bs1 = bw_b1 * fiy - bw_a1 * flp1 + bs4
+                bs2 = bw_b1 * fiz - bw_a1 * flp2 + bs5
+                bs3 = bw_b2 * fix - bw_a2 * flp0
+                bs4 = bw_b2 * fiy - bw_a2 * flp1
+                bs5 = bw_b2 * fiz - bw_a2 * flp2
+            else:
+                bw_ok = 0.0
+                alpha *= weight
+                flp0 = flp0 + alpha * (fix - flp0)
+                flp1 = flp1 + alpha * (fiy - flp1)
+                flp2 = flp2 + alpha * (fiz - flp2)
             nx, ny, nz = _qrot(qcw, qcx, qcy, qcz, flp0, flp1, flp2)
             ang = _angle_over_sine(nx * nx + ny * ny, nz)
             ex, ey = ny * ang, -nx * ang  # rotate about n × up by the angle between n and up
@@ -712,6 +814,12 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
             c0, s0 = dipc, dips
             dcos = mh * c0 - mwz * s0
             dsin = -mwz * c0 - mh * s0
+            if not v_ok:
+                # the heading's variance: σ_h² + κ D, D = LP[(|m − o| − |B|)²] (a magnet changes the
+                # norm), + (|B| |ω| τ_m)² (the field's time skew under rotation); its weight σ_h²/…
+                dn = norm - bnorm
+                mdist += a_dist * (dn * dn - mdist)
+                mag_w = r_head / (r_head + kappa * mdist + bnorm * bnorm * (wx * wx + wy * wy + wz * wz) * tau_m2)
             if abs(norm - bnorm) > btol * bnorm or dcos < cos_dtol * norm:
                 flags |= fl.MAG_DISTURBED
                 rej_t += h
@@ -736,6 +844,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
         kh = kh0
         if kh * (t + t0) < 1.0:  # start: heading follows the settling tilt, k_h = max(k_h, 1/(t + t0))
             kh = 1.0 / (t + t0)
+        if mag_w != 1.0:
+            kh *= mag_w
         if kp == 0.0:  # the default: the cross-link terms are ±0 and change no sum
             ux, uy, uz = kt * ex, kt * ey, kh * ez
         else:
@@ -812,6 +922,9 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     st[_S_OFF_K], st[_S_BNORM], st[_S_DIP], st[_S_FIELD_OK], st[_S_REJ_T] = off_k, bnorm, dip, field_ok, rej_t
     st[_S_DIP_CS], st[_S_DIP_CS + 1] = dipc, dips
     st[_S_TIME] = t
+    j = _S_BW
+    st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5] = bs0, bs1, bs2, bs3, bs4, bs5
+    st[_S_BW_OK], st[_S_MDIST] = bw_ok, mdist
 
 
 class BisoPlusEstimator(Estimator):

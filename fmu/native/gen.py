@@ -69,12 +69,14 @@ RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
         **{name: _NONNEG for name in (
             "tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "bias_limit_rad_s", "rest_time_s",
             "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps", "mag_reject_max_s",
-            "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor")},
+            "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor", "mag_disturbance_gain",
+            "tau_mag_disturbance_s", "mag_time_skew_s")},
         **{name: _POS for name in (
             "accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut", "mag_offset_sigma_ut",
             "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s", "bias_sigma_motion_rad_s",
             "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s", "field_norm_ut", "gyro_range_rad_s",
-            "accel_range_mps2")},
+            "accel_range_mps2", "accel_gate_free", "mag_heading_noise_ut")},
+        "tilt_lp_order": (1.0, 2.0, False),
         "dip_rad": (-0.5 * math.pi, 0.5 * math.pi, False), "declination_rad": _ANY, "speed_point_b_m": _ANY,
     },
 }

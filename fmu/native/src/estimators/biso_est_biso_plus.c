@@ -29,6 +29,18 @@ static double kalman_noise(double sigma, double v) {
     return p * p / v + p;
 }
 
+/* second-order Butterworth low-pass (b0, b1, b2, a1, a2), cut-off sqrt(2)/(2 pi tau), bilinear
+ * with pre-warping (_butterworth2; VQF filterCoeffs) */
+static void butterworth2(double h, double tau, double *out) {
+    double fc = sqrt(2.0) / (2.0 * BISO_EST_K_PI * tau);
+    double cw = tan(BISO_EST_K_PI * fc * h);
+    double d = cw * cw + sqrt(2.0) * cw + 1.0;
+    double b0 = cw * cw / d;
+    out[0] = b0; out[1] = 2.0 * b0; out[2] = b0;
+    out[3] = 2.0 * (cw * cw - 1.0) / d;
+    out[4] = (1.0 - sqrt(2.0) * cw + cw * cw) / d;
+}
+
 static int plus_coefficients(const char *kind, const double *p, double fs_hz, double *c, char *msg, size_t size) {
     double h = 1.0 / fs_hz, decl = p[P(DECLINATION_RAD)], dt_off;
     memset(c, 0, BISO_EST_BISO_PLUS_COEF_SIZE * sizeof(double));
@@ -88,6 +100,13 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     }
     /* |delta| > theta ⟺ cos delta < cos theta for |delta| <= pi; theta >= pi: never */
     c[C(COS_DIP_TOL)] = c[C(DIP_TOL)] < BISO_EST_K_PI ? cos(c[C(DIP_TOL)]) : -2.0;
+    /* without a speed input: Butterworth (all 0: first order), gate (0: none), heading variance */
+    if (p[P(TILT_LP_ORDER)] == 2.0 && p[P(TAU_ACC_S)] > 0.0) butterworth2(h, p[P(TAU_ACC_S)], c + C(ACC_BW));
+    c[C(INV_GATE_FREE_G)] = isnan(p[P(ACCEL_GATE_FREE)]) ? 0.0 : 1.0 / (c[C(G)] * p[P(ACCEL_GATE_FREE)]);
+    c[C(R_HEAD)] = libm_pow(p[P(MAG_HEADING_NOISE_UT)], 2.0);
+    c[C(KAPPA)] = p[P(MAG_DISTURBANCE_GAIN)];
+    c[C(A_DIST)] = alpha_of(h, p[P(TAU_MAG_DISTURBANCE_S)]);
+    c[C(TAU_M2)] = libm_pow(p[P(MAG_TIME_SKEW_S)], 2.0);
     /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
     if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
@@ -105,7 +124,11 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
         || biso_est_need_finite(kind, c[C(OFFSET_BIAS2)], "offset learning threshold",
                                 "mag_offset_bias_sigma_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(INV_GATE_G)], "gate scale 1/(g gamma)", "gravity_mps2, accel_gate", msg,
-                                size))
+                                size)
+        || biso_est_need_finite(kind, c[C(INV_GATE_FREE_G)], "gate scale 1/(g gamma_f)",
+                                "gravity_mps2, accel_gate_free", msg, size)
+        || biso_est_need_finite(kind, c[C(R_HEAD)], "heading noise variance", "mag_heading_noise_ut", msg, size)
+        || biso_est_need_finite(kind, c[C(TAU_M2)], "squared time skew", "mag_time_skew_s", msg, size))
         return -1;
     return 0;
 }
@@ -367,6 +390,10 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const double kt = c[C(K_T)], kh0 = c[C(K_H)], kp = c[C(K_P)], t0 = c[C(T0)];
         const double bp0 = c[C(BIAS_P0)], bv_ = c[C(BIAS_V)], bwm = c[C(BIAS_W_MOTION)];
         const double bwv = c[C(BIAS_W_VERTICAL)], bwr = c[C(BIAS_W_REST)], blim = c[C(BIAS_LIMIT)];
+        const double *bw = c + C(ACC_BW);
+        const int bw_on = bw[0] != 0.0;
+        const double inv_gate_free = c[C(INV_GATE_FREE_G)];
+        const double r_head = c[C(R_HEAD)], kappa = c[C(KAPPA)], a_dist = c[C(A_DIST)], tau_m2 = c[C(TAU_M2)];
 
         /* ---- state */
         double lw, lx, ly, lz;
@@ -386,7 +413,8 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         double dipc = st[S(FIELD_DIP_CS)], dips = st[S(FIELD_DIP_CS) + 1];
         double t = st[S(TIME_S)];
         double wx, wy, wz, comp_x = 0.0, comp_y = 0.0, comp_z = 0.0, ex = 0.0, ey = 0.0, ez = 0.0;
-        double ux, uy, uz, kh, alpha;
+        double ux, uy, uz, kh, alpha, mag_w = 1.0;
+        double *bs = st + S(ACCEL_BW_I);
         int v_ok, rest = 0, updated = 0, k;
         bq eb, q;
         bm r;
@@ -451,6 +479,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         /* ---- tilt error: low-pass of the (compensated) specific force in I, gated */
         if (chk.acc_ok) {
             double fx, fy, fz, fnorm, d, weight, ang;
+            int start;
             bv fi, n;
             if (v_ok) {
                 fx = ax - comp_x; fy = ay - comp_y; fz = az - comp_z;
@@ -458,16 +487,40 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             } else {
                 fx = ax; fy = ay; fz = az; fnorm = sqrt(chk.f2);
             }
-            d = fabs(fnorm - g) * inv_gate_g;
+            d = fabs(fnorm - g) * (v_ok ? inv_gate_g : inv_gate_free);
             weight = 1.0 / (1.0 + d * d);
             if (weight < 0.5) flags |= BISO_EST_FLAG_ACCEL_GATED;
             alpha = v_ok ? a_accv : a_acc;
-            if (h > alpha * (t + h)) alpha = h / (t + h);  /* start: a running mean (as VQF) */
-            alpha *= weight;
+            start = h > alpha * (t + h);
+            if (start) alpha = h / (t + h);  /* start: a running mean (as VQF) */
             fi = bq_rot(qiw, qix, qiy, qiz, fx, fy, fz);
-            flp[0] = flp[0] + alpha * (fi.x - flp[0]);
-            flp[1] = flp[1] + alpha * (fi.y - flp[1]);
-            flp[2] = flp[2] + alpha * (fi.z - flp[2]);
+            if (bw_on && !(v_ok || start)) {
+                /* second order, transposed direct form II (bs[0..2], bs[3..5]: the two delays per axis),
+                 * entered from the first order's output at that output's steady state */
+                double xi[3];
+                if (st[S(ACCEL_BW_READY)] == 0.0) {
+                    st[S(ACCEL_BW_READY)] = 1.0;
+                    for (k = 0; k < 3; k++) {
+                        bs[k] = (1.0 - bw[0]) * flp[k];
+                        bs[3 + k] = (bw[2] - bw[4]) * flp[k];
+                    }
+                }
+                xi[0] = fi.x; xi[1] = fi.y; xi[2] = fi.z;
+                for (k = 0; k < 3; k++) {
+                    double y;
+                    if (weight < 1.0) xi[k] = flp[k] + weight * (xi[k] - flp[k]);  /* gated */
+                    y = bw[0] * xi[k] + bs[k];
+                    bs[k] = bw[1] * xi[k] - bw[3] * y + bs[3 + k];
+                    bs[3 + k] = bw[2] * xi[k] - bw[4] * y;
+                    flp[k] = y;
+                }
+            } else {
+                st[S(ACCEL_BW_READY)] = 0.0;
+                alpha *= weight;
+                flp[0] = flp[0] + alpha * (fi.x - flp[0]);
+                flp[1] = flp[1] + alpha * (fi.y - flp[1]);
+                flp[2] = flp[2] + alpha * (fi.z - flp[2]);
+            }
             n = bq_rot(qcw, qcx, qcy, qcz, flp[0], flp[1], flp[2]);
             ang = angle_over_sine(n.x * n.x + n.y * n.y, n.z);
             ex = n.y * ang; ey = -n.x * ang;  /* rotate about n x up by the angle between n and up */
@@ -504,6 +557,14 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             c0 = dipc; s0 = dips;
             dcos = mh * c0 - mw.z * s0;
             dsin = -mw.z * c0 - mh * s0;
+            if (!v_ok) {
+                /* the heading's weight sigma_h^2 / (sigma_h^2 + kappa D + (|B| |w| tau_m)^2),
+                 * D = LP[(|m - o| - |B|)^2] */
+                double dn = norm - bnorm;
+                st[S(MAG_DISTURBANCE)] += a_dist * (dn * dn - st[S(MAG_DISTURBANCE)]);
+                mag_w = r_head / (r_head + kappa * st[S(MAG_DISTURBANCE)]
+                                  + bnorm * bnorm * (wx * wx + wy * wy + wz * wz) * tau_m2);
+            }
             if (fabs(norm - bnorm) > btol * bnorm || dcos < cos_dtol * norm) {
                 flags |= BISO_EST_FLAG_MAG_DISTURBED;
                 rej_t += h;
@@ -529,6 +590,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         /* ---- the correction w_c = K e + k_p n x e as a rotation of q_c (world frame) */
         kh = kh0;
         if (kh * (t + t0) < 1.0) kh = 1.0 / (t + t0);  /* start: heading follows the settling tilt */
+        if (mag_w != 1.0) kh *= mag_w;
         if (kp == 0.0) {
             ux = kt * ex; uy = kt * ey; uz = kh * ez;
         } else {
