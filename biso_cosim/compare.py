@@ -41,8 +41,8 @@ from biso_cosim.output import write_text_atomic
 __all__ = ["Dataset", "route_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
            "DEFAULT_MOTIONS", "format_table"]
 
-DEFAULT_MOTIONS = ("tumble", "shake", "magnet")
-"""Non-vehicle motions of the comparison (issue 4's targets)."""
+DEFAULT_MOTIONS = ("tumble", "shake", "magnet", "translation", "near_magnet")
+"""Non-vehicle motions of the comparison (issue 4's targets; issue 23's BROAD-like ones)."""
 
 # Sensor configuration for the non-vehicle motions: tumbling reaches 5.7 rad/s, beyond the
 # vehicle default of ±250 °/s, and shaking about 2.3 g: ±2000 °/s and ±8 g, as a user would set.

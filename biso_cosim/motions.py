@@ -21,6 +21,14 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
              1 g peak at 2–6 Hz;
 ``magnet``   slow handling while a magnet (dipole 0.5 A·m²) is brought to 4 cm of the sensor
              and taken away (field up to ~1.5 mT), then the Earth field alone again;
+``translation`` fast handheld translations (BROAD's "fast translation" trials, Laidig et al.
+             2021): ±(10–15)° slow attitude changes while the sensor is moved back and forth
+             along all three axes at 1–2.5 Hz, about 1 g RMS of |f| − g (peaks near 3 g),
+             for the whole motion;
+``near_magnet`` the sensor handled (slow turns, ±0.15 m moves) 0.2–0.45 m from a magnet
+             fixed in the room (BROAD's "stationary magnet" trials): the field's direction
+             and norm change by a few to tens of µT with the position, partly below the
+             norm test's threshold;
 ``coning``   classical coning: the body axis z sweeps a cone of half-angle α at Ω;
 ``circle``   level driving on a circle at constant speed (a vehicle's centripetal acceleration
              with an exact speed, for the acceleration compensation of biso_plus).
@@ -215,6 +223,56 @@ def magnet(duration_s=30.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, closest_m=0.
                      {"distance_m": dist, "moment_am2": moment_am2})
 
 
+def translation(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=2.0, field_w=EARTH_FIELD_W, g=G0):
+    """Fast handheld translations: slow attitude changes (±(10–15)° at 0.05–0.2 Hz) and a
+    back-and-forth translation along every axis at 1.1, 1.7 and 2.5 Hz, each of ``accel_g``/3
+    g amplitude (|f| − g about 1 g RMS at the default, peaks near 3 g), for the whole motion (the specific force leaves g all the time; its
+    spectrum lies a decade above the cut-off of a tilt low-pass of a few seconds)."""
+    t = _time(duration_s, fs_hz)
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi, size=3)
+    amp, frq = np.radians([15.0, 10.0, 12.0]), 2 * np.pi * np.array([0.05, 0.13, 0.19])
+
+    def slow(j, base):
+        return (lambda tt: base + amp[j] * np.sin(frq[j] * tt + ph[j]),
+                lambda tt: amp[j] * frq[j] * np.cos(frq[j] * tt + ph[j]))
+
+    q, om = _euler_chain(t, slow(0, 0.5), slow(1, 0.1), slow(2, -0.15))
+    freqs = [1.1, 1.7, 2.5]
+    amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in freqs]
+    _, acc = _sines(rng, t, amp_pos, freqs)
+    earth = np.asarray(field_w, float)
+    return _assemble("translation", fs_hz, t, q, om, acc, np.tile(earth, (t.size, 1)), earth, g,
+                     {"accel_g": accel_g})
+
+
+def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distance_m=0.3, field_w=EARTH_FIELD_W,
+                g=G0):
+    """The sensor handled near a magnet fixed in the room: slow turns (yaw ±35°, pitch and
+    roll ±15°) and moves of ±0.15 m per axis (0.04–0.11 Hz) about a point ``distance_m``
+    from a dipole of ``moment_am2``; the field at the sensor is the Earth's plus the
+    dipole's at the sensor's position, so it changes with the position in norm and
+    direction (a few µT at 0.45 m, tens at 0.2 m)."""
+    t = _time(duration_s, fs_hz)
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi, size=6)
+    yaw = (lambda tt: 0.6 * np.sin(0.35 * tt + ph[0]), lambda tt: 0.21 * np.cos(0.35 * tt + ph[0]))
+    pitch = (lambda tt: 0.25 * np.sin(0.55 * tt + ph[1]), lambda tt: 0.1375 * np.cos(0.55 * tt + ph[1]))
+    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    q, om = _euler_chain(t, yaw, pitch, roll)
+    w = 2 * np.pi * np.array([0.04, 0.07, 0.11])
+    pos = 0.15 * np.sin(w[None, :] * t[:, None] + ph[None, 3:])
+    acc = -0.15 * w[None, :] ** 2 * np.sin(w[None, :] * t[:, None] + ph[None, 3:])
+    direction = np.array([0.6, -0.5, 0.62])
+    direction /= np.linalg.norm(direction)
+    r = distance_m * direction[None, :] + pos  # sensor relative to the magnet
+    moment = moment_am2 * np.array([0.3, 0.8, -0.52]) / np.linalg.norm([0.3, 0.8, -0.52])
+    earth = np.asarray(field_w, float)
+    b = earth[None, :] + dipole_field(moment, r)
+    return _assemble("near_magnet", fs_hz, t, q, om, acc, b, earth, g,
+                     {"distance_m": np.linalg.norm(r, axis=1), "moment_am2": moment_am2})
+
+
 def coning(duration_s=10.0, fs_hz=200.0, *, seed=0, half_angle_rad=0.1, rate_rad_s=2 * np.pi, field_w=EARTH_FIELD_W, g=G0):
     """Coning: q = R_z(Ωt) R_x(α) R_z(−Ωt); body rate magnitude 2Ω sin(α/2)."""
     t = _time(duration_s, fs_hz)
@@ -255,6 +313,8 @@ MOTIONS: dict[str, Callable[..., Motion]] = {
     "tumble": tumble,
     "shake": shake,
     "magnet": magnet,
+    "translation": translation,
+    "near_magnet": near_magnet,
     "coning": coning,
     "circle": circle,
 }

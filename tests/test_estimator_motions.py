@@ -67,3 +67,30 @@ def test_seeds_and_errors():
         mo.make_motion("static", -1.0)
     with pytest.raises(ValueError, match="fs_hz"):
         mo.make_motion("static", 1.0, 0.0)
+
+
+def test_translation_keeps_the_specific_force_away_from_g():
+    """BROAD's fast translations: |f| − g of about 1 g RMS for the whole motion, its power a
+    decade above a 3 s low-pass's cut-off (0.075 Hz), and a bounded position."""
+    m = mo.make_motion("translation", 60.0, 200.0, seed=1)
+    dev = np.linalg.norm(m.specific_force_b, axis=1) - 9.80665
+    assert 0.5 * 9.8 < np.sqrt(np.mean(dev ** 2)) < 1.5 * 9.8
+    assert 1.5 * 9.8 < np.max(np.linalg.norm(m.accel_w, axis=1)) < 3.5 * 9.8
+    spec = np.abs(np.fft.rfft(m.accel_w, axis=0)) ** 2
+    f = np.fft.rfftfreq(len(m), 1.0 / m.fs_hz)
+    assert np.sum(spec[f > 0.75]) > 0.99 * np.sum(spec)
+    v = np.cumsum(m.accel_w, axis=0) / m.fs_hz
+    assert np.max(np.abs(v - v.mean(axis=0))) < 2.5
+
+
+def test_near_magnet_field_changes_with_the_position():
+    """A magnet fixed in the room: the field at the sensor is the Earth's plus the dipole's at
+    the sensor's position, its norm off by a few to tens of µT, partly below a 10 % test."""
+    m = mo.make_motion("near_magnet", 60.0, 100.0)
+    d = m.info["distance_m"]
+    assert 0.1 < d.min() and d.max() < 0.6
+    extra = np.linalg.norm(m.mag_w - m.earth_field_w, axis=1)
+    # a dipole's field at distance r lies between |m|/r³ and 2|m|/r³ (×µ0/4π = 0.1 µT·m/A)
+    assert np.all(extra >= 0.1 * 0.5 / d ** 3 * (1 - 1e-9)) and np.all(extra <= 0.2 * 0.5 / d ** 3 * (1 + 1e-9))
+    dn = np.abs(np.linalg.norm(m.mag_w, axis=1) - np.linalg.norm(m.earth_field_w))
+    assert dn.max() > 10.0 and np.mean(dn < 0.1 * np.linalg.norm(m.earth_field_w)) > 0.2
