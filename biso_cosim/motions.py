@@ -29,6 +29,11 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
              fixed in the room (BROAD's "stationary magnet" trials): the field's direction
              and norm change by a few to tens of µT with the position, partly below the
              norm test's threshold;
+``vibration`` slow handling with a phone vibrating on the sensor (BROAD's "phone vibration"
+             trials) during the middle third: a 150 Hz vibration of ±0.05° and ±0.02 mm
+             (rates up to ~1 rad/s, accelerations ~2 g, both aliased at a 200 Hz sample rate)
+             and the phone's own field, fixed in body axes (a hard-iron offset that comes and
+             goes: 5 µT);
 ``coning``   classical coning: the body axis z sweeps a cone of half-angle α at Ω;
 ``circle``   level driving on a circle at constant speed (a vehicle's centripetal acceleration
              with an exact speed, for the acceleration compensation of biso_plus).
@@ -273,6 +278,54 @@ def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distanc
                      {"distance_m": np.linalg.norm(r, axis=1), "moment_am2": moment_am2})
 
 
+def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_rad=np.radians(0.05),
+              vib_m=0.02e-3, phone_field_b_ut=(3.0, -2.5, 3.0), field_w=EARTH_FIELD_W, g=G0):
+    """Slow handling (yaw ±35°, pitch and roll ±15° at 0.05–0.12 Hz); during the middle third
+    a phone vibrates on the sensor: an angular vibration of ``vib_angle_rad`` about a skew
+    body axis and a translation of ``vib_m`` along another, both at ``vib_hz`` (smoothly
+    switched on and off over 1 s), and the phone's field ``phone_field_b_ut`` fixed in body
+    axes (it moves with the sensor: a hard-iron offset that appears and leaves)."""
+    t = _time(duration_s, fs_hz)
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi, size=3)
+    yaw = (lambda tt: 0.6 * np.sin(0.3 * tt + ph[0]), lambda tt: 0.18 * np.cos(0.3 * tt + ph[0]))
+    pitch = (lambda tt: 0.25 * np.sin(0.5 * tt + ph[1]), lambda tt: 0.125 * np.cos(0.5 * tt + ph[1]))
+    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    T = t[-1] if t.size > 1 else 1.0
+    # on/off envelope: raised-cosine ramps of 1 s at T/3 and 2T/3 (its derivatives analytic)
+    def env(tt):
+        up = np.clip(tt - T / 3.0, 0.0, 1.0)
+        down = np.clip(2.0 * T / 3.0 - tt, 0.0, 1.0)
+        return 0.5 * (1.0 - np.cos(np.pi * np.minimum(up, down)))
+
+    def denv(tt):
+        up, down = tt - T / 3.0, 2.0 * T / 3.0 - tt
+        d = np.where((up > 0) & (up < 1) & (up <= down), 1.0, 0.0) - np.where((down > 0) & (down < 1) & (down < up),
+                                                                              1.0, 0.0)
+        return 0.5 * np.pi * np.sin(np.pi * np.clip(np.minimum(up, down), 0.0, 1.0)) * d
+
+    w = 2.0 * np.pi * vib_hz
+    a = float(vib_angle_rad)
+    q_slow, om_slow = _euler_chain(t, yaw, pitch, roll)
+    axis = np.array([0.5, -0.7, 0.5]) / np.linalg.norm([0.5, -0.7, 0.5])
+    th = a * env(t) * np.sin(w * t)
+    dth = a * (denv(t) * np.sin(w * t) + env(t) * w * np.cos(w * t))
+    q_vib, om_vib = rotation_chain([axis], th[:, None], dth[:, None])
+    q = quat_multiply(q_slow, q_vib)
+    om = quat_rotate(quat_conjugate(q_vib), om_slow) + om_vib
+    # translation along a body direction at the vibration frequency, in the world: its
+    # acceleration is that of the amplitude envelope's sine (the slow attitude's change over
+    # one period neglected: < 1e-3 of it)
+    d_b = np.array([0.2, 0.9, -0.4]) / np.linalg.norm([0.2, 0.9, -0.4])
+    d_w = quat_rotate(q_slow, d_b)
+    acc = (-vib_m * w * w * env(t) * np.sin(w * t))[:, None] * d_w
+    earth = np.asarray(field_w, float)
+    on = (env(t) > 0.0)[:, None]
+    mag_w = earth[None, :] + on * quat_rotate(q, np.asarray(phone_field_b_ut, float))
+    return _assemble("vibration", fs_hz, t, q, om, acc, mag_w, earth, g,
+                     {"vib_hz": vib_hz, "vibrating": env(t) > 0.0})
+
+
 def coning(duration_s=10.0, fs_hz=200.0, *, seed=0, half_angle_rad=0.1, rate_rad_s=2 * np.pi, field_w=EARTH_FIELD_W, g=G0):
     """Coning: q = R_z(Ωt) R_x(α) R_z(−Ωt); body rate magnitude 2Ω sin(α/2)."""
     t = _time(duration_s, fs_hz)
@@ -315,6 +368,7 @@ MOTIONS: dict[str, Callable[..., Motion]] = {
     "magnet": magnet,
     "translation": translation,
     "near_magnet": near_magnet,
+    "vibration": vibration,
     "coning": coning,
     "circle": circle,
 }
