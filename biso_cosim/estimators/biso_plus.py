@@ -138,8 +138,8 @@ class BisoPlusParams:
         0.0, symbol="τ_m", unit="s",
         doc="effective time skew of the magnetometer against the gyro (AK8963 sampling at 100 Hz or "
             "below, read late): under a rotation ω the field it reports is off by about |B| |ω| τ_m; "
-            "0 = not modelled (measured on BROAD: 0.01–0.02 s lowers the fast-rotation trials' error "
-            "and raises the combined and magnet trials' more)",
+            "0 = not modelled (measured on BROAD: 0.01–0.02 s raises the mean error; compensating the "
+            "skew instead helps the fast-rotation trial and costs more on the combined and magnet ones)",
         source="AK8963 datasheet §6.4 (measurement time); measured (docs/estimators.md)")
     # -- cross-link
     k_p: float = param(

@@ -253,7 +253,7 @@ static const biso_est_param params_biso_plus[] = {
      "measured",
      BISO_EST_REAL, 0, 1, 0x1.999999999999ap-3, 0.0, HUGE_VAL, 0, NULL, 0},
     {"mag_time_skew_s", "\317\204_m", "s", "s",
-     "effective time skew of the magnetometer against the gyro (AK8963 sampling at 100 Hz or below, read late): under a rotation \317\211 the field it reports is off by about |B| |\317\211| \317\204_m; 0 = not modelled (measured on BROAD: 0.01\342\200\2230.02 s lowers the fast-rotation trials' error and raises the combined and magnet trials' more)",
+     "effective time skew of the magnetometer against the gyro (AK8963 sampling at 100 Hz or below, read late): under a rotation \317\211 the field it reports is off by about |B| |\317\211| \317\204_m; 0 = not modelled (measured on BROAD: 0.01\342\200\2230.02 s raises the mean error; compensating the skew instead helps the fast-rotation trial and costs more on the combined and magnet ones)",
      "AK8963 datasheet \302\2476.4 (measurement time); measured (docs/estimators.md)",
      BISO_EST_REAL, 0, 1, 0.0, 0.0, HUGE_VAL, 0, NULL, 0},
     {"k_p", "k_p", "1/s", "1/s",
