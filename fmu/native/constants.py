@@ -186,7 +186,7 @@ def _wmm() -> str:
             names.append(f"{{{_str(model)}, {_str(date)}, {_d(epoch)}, {len(records)}, {name}}}")
             releases[path] = len(releases)
         of_year.append(releases[path])
-    return ("".join(blocks) + f"const biso_wmm_release biso_wmm_releases[] = {{\n    " + ",\n    ".join(names) + "};\n"
+    return ("".join(blocks) + "const biso_wmm_release biso_wmm_releases[] = {\n    " + ",\n    ".join(names) + "};\n"
             f"const int biso_n_wmm_releases = {len(names)};\n"
             f"const int biso_wmm_first_year = {years[0]}, biso_wmm_last_year = {years[-1]};\n"
             f"const int biso_wmm_release_of_year[] = {{{', '.join(map(str, of_year))}}};\n")

@@ -10,7 +10,6 @@ sources into their binaries).
 from __future__ import annotations
 
 import ctypes
-import functools
 from pathlib import Path
 from typing import Any, Mapping
 
