@@ -100,6 +100,17 @@ class _Period:
             view = self.views[k] = (samples, Truth._of(self.truth.at[:k]), estimates)
         return view
 
+    def copy(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``view(k)`` in arrays of their own (for a caller that keeps them: the log)."""
+        out = self.outputs
+        samples = MPU9250._samples(SENSE_OK, k, (out.floats.copy(), out.words.copy(), out.status_bytes.copy(),
+                                                 out.flags.copy()), self.increments, self.subintervals)
+        estimates = {}
+        for key, est, arrays in self.in_loop:
+            e = est.loop_estimate(arrays, k)
+            estimates[key] = Estimate(e.q_wb.copy(), e.flags.copy(), None if e.gyro_bias_b is None else e.gyro_bias_b.copy())
+        return samples, Truth._of(self.truth.at[:k].copy()), estimates
+
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
     """An agent's command: a DriverCommand of finite values within the actuators' ranges."""
@@ -662,16 +673,18 @@ class CoSimulation:
 
     def _period(self, rows: np.ndarray | None, packed_rows: bool) -> _Period:
         """The period call for ``rows`` (None: MuJoCo's sensor history, read into the
-        vehicle's rows), reused while the versions hold when ``reuse_outputs``."""
+        vehicle's rows; else copied into the plan's own rows), gathered once for each kind
+        and number of rows and reused while the versions hold."""
         vehicle = self.vehicle
-        reusable = self.reuse_outputs and not packed_rows and (rows is None or rows is vehicle._rows)
-        key = (rows is None, vehicle._rows.shape[0] if rows is None else rows.shape[0])
-        if reusable:
-            period = self._periods.get(key)
-            if period is not None and period.versions == self._versions():
-                return period
+        mode = "history" if rows is None else "packed" if packed_rows else "rows"
+        key = (mode, vehicle._rows.shape[0] if rows is None else rows.shape[0])
+        period = self._periods.get(key)
+        if period is not None and period.versions == self._versions():
+            if rows is not None:
+                np.copyto(period.physics.rows, rows)
+            return period
         history = vehicle._history if rows is None else _NO_HISTORY
-        rows = vehicle._rows if rows is None else rows
+        rows = vehicle._rows if rows is None else rows.copy()
         n = rows.shape[0]
         orders, subs = self._increment_orders, self._subintervals
         floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
@@ -699,8 +712,7 @@ class CoSimulation:
                                   tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop), consumers or ()))
         period = _Period(plan, physics, truth, outputs, tuple(in_loop), consumers is not None, self._versions(), orders,
                          subs)
-        if reusable:
-            self._periods[key] = period
+        self._periods[key] = period
         return period
 
     def _sense_loop(self, rows: np.ndarray | None, first_step: int, t_start: float = 0.0, packed_rows: bool = False
@@ -726,7 +738,7 @@ class CoSimulation:
             samples = self.imu._samples(status, k, (out.floats, out.words, out.status_bytes, out.flags),
                                         self._increment_orders, self._subintervals)
             self._truth_at(samples.t_s, truth)
-        samples, at_samples, estimated = period.view(k)
+        samples, at_samples, estimated = period.view(k) if self.reuse_outputs else period.copy(k)
         if (period.consumed and len(estimated) == len(self.estimators) and not self.keep_log
                 and self.gnss_receiver is None and not self.navigators):  # the call was the whole period
             return samples, at_samples, dict(estimated)

@@ -276,7 +276,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def step(self, action: Any):
         self._require_running()
         tuned = self._sim.estimators["tuned"]
-        if tuned.arrays_version == self._closed_version:  # (see reset)
+        if tuned.arrays_version == self._closed_version and tuned.closed_form:  # (see reset)
             self._tune_closed(action, tuned)
         else:
             a = self._check_action(action)
@@ -293,13 +293,13 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _set_gains(self, a: np.ndarray) -> None:
-        """Set the tuned copy's parameters from a checked action (``set_params``). The values
+        """Set the tuned copy's parameters from a checked action (``retune``). The values
         in force are then the values the action stands for (with the cross-link ratio also
         the k and k_p derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
         tuned = self._sim.estimators["tuned"]
         changes = self._changes(values)
-        tuned.set_params(**changes)
+        tuned.retune(**changes)
         if "k" in changes:
             values.update(k=changes["k"], k_p=changes["k_p"])
         self._in_force = (tuned.params, values)

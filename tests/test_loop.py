@@ -143,3 +143,27 @@ def test_attached_work_runs_once_per_period_on_either_path():
     assert np.array_equal(seen[0][0], seen[1][0]) and np.array_equal(seen[0][1], seen[1][1])
     with pytest.raises(ValueError, match="no estimator 'nope'"):
         sim.attach(PeriodWork(count, arrays, ("nope",)))
+
+
+@pytest.mark.parametrize("name, changes", [("biso", {"cutoff_hz": 1.5}), ("biso", {"pattern": 13}),
+                                           ("biso_plus", {"k_tilt": 3.0, "tau_acc_s": 2.0}),
+                                           ("dcm_pi", {"kp_rp": 0.5})])
+def test_retune_gives_set_params_numbers_and_keeps_the_loops_arrays(name, changes):
+    """``retune`` is ``set_params``' result (record, coefficients, the stream after it, bit
+    for bit), written into the arrays the period call holds: no new plan is needed."""
+    from biso_cosim.estimators import describe_estimator, make_estimator
+
+    known = {row["name"] for row in describe_estimator(name)["params"]}
+    changes = {k: v for k, v in changes.items() if k in known}
+    assert changes, f"{name}: none of {sorted(changes)} is a parameter"
+    rng = np.random.default_rng(1)
+    gyro, accel, mag = rng.normal(0, 0.1, (50, 3)), rng.normal(0, 0.2, (50, 3)) + (0, 0, 9.81), \
+        rng.normal(0, 1, (50, 3)) + (20.0, 0, -40.0)
+    a, b = make_estimator(name, 200.0), make_estimator(name, 200.0)
+    a.update(gyro, accel, mag), b.update(gyro, accel, mag)
+    coef, version = a.coefficients, a.arrays_version
+    a.retune(**changes)
+    b.set_params(**changes)
+    assert a.params == b.params and a.coefficients.tobytes() == b.coefficients.tobytes()
+    assert a.arrays_version == version and not np.array_equal(a.coefficients, coef)
+    assert np.array_equal(a.update(gyro, accel, mag).q_wb, b.update(gyro, accel, mag).q_wb)

@@ -366,9 +366,18 @@ class Estimator:
         """Change parameters while the estimator runs (a tuning loop's change, each step):
         ``set_params``' result, the parameter record, the coefficients and the checks
         consistent, the state untouched. An estimator with a cheaper way for some changes
-        takes it here (BISO: equal gains of the closed form, in place); the coefficient
-        and state arrays are replaced only when ``arrays_version`` says so."""
-        self.set_params(**changes)
+        takes it here (BISO: equal gains of the closed form, in place). The new
+        coefficients are written into the coefficient array in place when they have its
+        shape (a loop that holds the array goes on with it); otherwise the array is
+        replaced and ``arrays_version`` counts up."""
+        params = self._replace_params(**changes)
+        coef = self._coefficients(params, self.fs_hz)
+        if coef.shape == self._coef.shape and coef.dtype == self._coef.dtype:
+            self._coef[...] = coef
+            self._params = params
+        else:
+            self._params, self._coef = params, coef
+            self.arrays_version += 1
 
     def _replace_params(self, **changes: Any) -> Any:
         names = {f.name for f in dataclasses.fields(self.Params)}

@@ -752,17 +752,22 @@ class BisoEstimator(Estimator):
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters without touching the state (see ``Estimator.set_params``);
-        equal gains of the closed form change in place (``retune``)."""
-        self.retune(**changes)
+        equal gains of the closed form change in place (``_equal_gains``)."""
+        if not self._equal_gains(changes):
+            super().set_params(**changes)
 
     def retune(self, **changes: Any) -> None:
-        """Change parameters without touching the state (see ``Estimator.retune``).
+        """Change parameters while the estimator runs (see ``Estimator.retune``); equal
+        gains of the closed form change in place (``_equal_gains``)."""
+        if not self._equal_gains(changes):
+            super().retune(**changes)
 
-        A tuning loop's change, equal scalar gains (``k``, ``k_p`` or ``cutoff_hz``) of the
-        closed-form correction (pattern 12, k > 0) to other such gains, takes a short path:
+    def _equal_gains(self, changes: dict[str, Any]) -> bool:
+        """The short path of a tuning loop's change, equal scalar gains (``k``, ``k_p`` or
+        ``cutoff_hz``) of the closed-form correction (pattern 12, k > 0) to other such gains:
         only the coefficients that depend on the gains are derived again, in place, by the
-        same expressions as ``biso_coefficients`` (the same numbers; tested), and the
-        arrays stay the same (``arrays_version`` unchanged)."""
+        same expressions as ``biso_coefficients`` (the same numbers; tested), and the arrays
+        stay the same (``arrays_version`` unchanged). Returns whether it applied."""
         if changes.keys() <= _GAIN_NAMES and self._coef[_C_MODE] == MODE_CLOSED:
             params = object.__new__(BisoParams)  # a frozen record: the copy's fields are set in its __dict__
             params.__dict__.update(self._params.__dict__, **changes)
@@ -771,13 +776,13 @@ class BisoEstimator(Estimator):
                     and 0.0 <= kp < math.inf):  # two valid scalars, checked in one expression
                 self._params = params
                 _set_gains_in_place(self._coef, params, k, kp)
-                return
+                return True
             k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
             if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
                 self._params = params
                 _set_gains_in_place(self._coef, params, k[0], kp[0])
-                return
-        super().set_params(**changes)
+                return True
+        return False
 
     def _is_closed_form(self) -> bool:
         """Whether the correction is the closed form (pattern 12, k > 0): equal gains then
