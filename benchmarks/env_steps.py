@@ -13,6 +13,11 @@ paid on top of the steps the workers run in parallel.
 
     python benchmarks/env_steps.py                       # 40 s episodes, every environment
     python benchmarks/env_steps.py --envs Driving --duration 60 --repeat 5
+    python benchmarks/env_steps.py --estimators biso biso_plus dcm_pi --no-vector   # each in the loop
+
+``--estimators`` runs each environment with each named estimator in the loop (its
+``estimator`` argument; GainTuning only with the estimators it has a default tuning for),
+one row each; ``--no-vector`` leaves out the vector-environment columns.
 
 The ratios to bare physics come from ``time_blocks``: the episode's environment steps,
 replaying the actions the policy took (the same steps without the policy between them), in
@@ -42,6 +47,7 @@ steps from MuJoCo's sensor history, so it pays no Python per physics step.
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import gymnasium as gym
@@ -50,6 +56,8 @@ import numpy as np
 
 import biso_cosim.envs  # noqa: F401  (registers the ids)
 from biso_cosim.envs import ENV_IDS
+from biso_cosim.envs.gain_tuning import DEFAULT_TUNING
+from biso_cosim.estimators import estimator_names
 from biso_cosim.vehicle.model import build_model
 from biso_cosim.vehicle.sim import PHYSICS_STATE
 
@@ -210,11 +218,12 @@ def time_cosim(core, actions: np.ndarray, seed: int, clock=time.process_time) ->
     return clock() - start
 
 
-def time_vector(env_id: str, mode: str, duration: float, actions: np.ndarray, seed: int) -> float:
+def time_vector(env_id: str, mode: str, duration: float, actions: np.ndarray, seed: int,
+                kwargs: dict | None = None) -> float:
     """Environment steps per second of 2 environments in a vector environment (replaying
     ``actions`` in both; for Driving the copies follow the same commands from the same start)."""
     vec = gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, episode_duration_s=duration,
-                       **KWARGS.get(env_id, {}))
+                       **(KWARGS.get(env_id, {}) if kwargs is None else kwargs))
     vec.reset(seed=[seed, seed])
     batch = np.repeat(actions[:, None, :], 2, axis=1)
     start = time.perf_counter()
@@ -249,17 +258,29 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="repetitions; the best of each is kept")
     parser.add_argument("--clock", default="cpu", choices=sorted(CLOCKS),
                         help="process CPU time (steady on a shared machine) or wall time")
+    parser.add_argument("--estimators", nargs="+", default=None, choices=estimator_names(),
+                        help="run each environment with each of these estimators in the loop (one row each)")
+    parser.add_argument("--no-vector", action="store_true", help="leave out the vector environments (sync/s, async/s)")
     args = parser.parse_args()
     clock = CLOCKS[args.clock]
     print(f"single-process figures: {args.clock} time; vector environments: wall time")
     print(f"{'environment':<19} {'steps':>6} {'env µs':>7} {'own µs':>7} {'make µs':>8} {'cosim µs':>9} "
           f"{'bare µs':>8} {'nstep µs':>9} {'env/bare':>9} {'env/nstep':>10} {'interleaved':>12} {'steps/s':>8} "
           f"{'sync/s':>7} {'async/s':>8}")
+    runs = []
     for env_id in ENV_IDS:
         name = env_id.split("/")[1].split("-")[0]
         if name not in args.envs:
             continue
-        wrapped = gym.make(env_id, episode_duration_s=args.duration, **KWARGS.get(env_id, {}))
+        for estimator in args.estimators or (None,):
+            if estimator is not None and name == "GainTuning" and estimator not in DEFAULT_TUNING:
+                print(f"{name + ' ' + estimator:<19} (no default tuning for {estimator}: not run)")
+                continue
+            runs.append((env_id, name, estimator))
+    for env_id, name, estimator in runs:
+        kwargs = dict(KWARGS.get(env_id, {}), **({} if estimator is None else {"estimator": estimator}))
+        label = name if estimator is None else f"{name[:10]} {estimator}"
+        wrapped = gym.make(env_id, episode_duration_s=args.duration, **kwargs)
         core = wrapped.unwrapped
         steps = int(round(args.duration * core.metadata["render_fps"])) - 1
         make_policy = pursuit if name == "Driving" else random_walk
@@ -278,15 +299,18 @@ def main() -> None:
             t_env, _, t_nstep, _ = time_blocks(core, actions, controls, 1, 1, clock)
             interleaved.append(t_env / t_nstep)
         done = len(actions)
-        sync = time_vector(env_id, "sync", args.duration, actions, seed=1)
-        asynchronous = time_vector(env_id, "async", args.duration, actions, seed=1)
+        sync = asynchronous = math.nan
+        if not args.no_vector:
+            sync = time_vector(env_id, "sync", args.duration, actions, seed=1, kwargs=kwargs)
+            asynchronous = time_vector(env_id, "async", args.duration, actions, seed=1, kwargs=kwargs)
         us = {**{k: 1e6 * v / done for k, v in best.items()}, **{k: 1e6 * v for k, v in per_step.items()}}
-        print(f"{name:<19} {done:>6} {us['env']:>7.1f} {us['own']:>7.1f} {us['make']:>8.1f} {us['cosim']:>9.1f} "
+        print(f"{label:<19} {done:>6} {us['env']:>7.1f} {us['own']:>7.1f} {us['make']:>8.1f} {us['cosim']:>9.1f} "
               f"{us['bare']:>8.1f} {us['nstep']:>9.1f} {us['env'] / us['bare']:>9.3f} "
               f"{us['env'] / us['nstep']:>10.3f} {np.median(interleaved):>12.3f} "
               f"{1e6 / us['env']:>8.0f} {sync:>7.0f} {asynchronous:>8.0f}")
-    print(f"vector machinery per step, CartPole-v1 (1 copy) for reference: sync {round_trip('sync'):.0f} µs, "
-          f"async {round_trip('async'):.0f} µs")
+    if not args.no_vector:
+        print(f"vector machinery per step, CartPole-v1 (1 copy) for reference: sync {round_trip('sync'):.0f} µs, "
+              f"async {round_trip('async'):.0f} µs")
 
 if __name__ == "__main__":
     main()

@@ -1,8 +1,9 @@
 """The co-simulation loop: vehicle → MPU-9250 → estimators, one control period at a time.
 
 docs/design.md §3: the physics runs at ``physics_rate_hz`` (1 kHz) in chunks of one control
-period; after each chunk the virtual MPU-9250 and every estimator are called once with the
-chunk's arrays (one jitted kernel call each, never a Python call per sample). The truth is
+period; after each chunk (in ``run()``, each block of chunks) the virtual MPU-9250, every
+estimator that declares a loop kernel and every attached consumer run in one compiled call
+(``biso_cosim.loop``; docs/architecture.md), never a Python call per sample. The truth is
 taken at the IMU site (body axes = IMU site axes) and interpolated to the sensor's output
 time stamps, so every estimate is compared with the attitude at the instant it refers to.
 
@@ -20,26 +21,25 @@ import threading
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping, NamedTuple
+from typing import Any, Iterable, Mapping
 
 import mujoco
 import numpy as np
 
-from biso_cosim._period import (_ARG_AT, _ARG_BEFORE, _ARG_FIRST_STEP, _ARG_FLAGS, _ARG_ODOMETRY, _ARG_OUT, _ARG_PACKED,
-                                 _ARG_T_START, _sense_estimate_period, _sensor_inputs)
+from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, SENSE_OK, SENSE_POSITION,
+                             SENSE_RESTEP, LoopSamples, PeriodPlan, PeriodWork, PhysicsRows, SampleOutputs, SensorArrays,
+                             TruthArrays, loop_kernel, prepare, sensor_inputs)
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
-from biso_cosim.estimators.biso import BisoEstimator
-from biso_cosim.estimators.biso_plus import BisoPlusEstimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
 from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle._kernels import _wheel_odometry
-from biso_cosim.vehicle.sim import _NO_ROWS, PHYSICS_STATE, Truth, VehicleSim
+from biso_cosim.vehicle.sim import PHYSICS_STATE, Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
-           "NAVIGATOR_PRESETS"]
+           "NAVIGATOR_PRESETS", "PeriodWork"]
 
 DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
 """A typical MPU-9250 after the usual start-up calibration (see docs/sensors.md)."""
@@ -65,118 +65,51 @@ _WINDOW_S = 1.0
 # Every log (a run from reset, or a history begun by set_state) gets its own number, so that
 # set_state cuts back only the log that a state belongs to.
 _LOG_GENERATIONS = itertools.count(1)
-# the period kernel's history argument when the rows are given (``_sense_period``)
+# the period call's history when the rows are given
 _NO_HISTORY = np.empty(0)
-# The estimators the period kernel can run itself (``CoSimulation._lane``): its slots a, b
-# take BISO estimators, c a BISO+; each slot's arguments are (coef, state, *outputs).
-_LANE_SLOTS = ((BisoEstimator, 0), (BisoEstimator, 1), (BisoPlusEstimator, 2))
-_NO_VELOCITY = np.empty((0, 3))
-_NO_SCRATCH = np.empty((0, 0))
-_NO_LANE = (np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64)) * 2 + (
-    np.empty(0), np.empty(0), np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0, 3)))
+# the columns of packed truth rows that ``_pack_rows`` copies when the rows given to the
+# period call are packed truth already (``_sense``: a block of ``run()``): all but the time
+_TRUTH_GATHER = np.arange(1, Truth.WIDTH)
 # ``CoSimulation.step``'s command from a caller that has written the period's controls into
 # MuJoCo's ctrl itself, after checking them (an environment's action, ``Driving-v0``): the
 # period runs as with a DriverCommand of those controls, without making and checking one.
 _CONTROLS_APPLIED = object()
 
 
-def _lane_outputs(bound: int, slots: Iterable[int] = (0, 1, 2)) -> list[tuple[np.ndarray, ...] | None]:
-    """The period kernel's estimator outputs for up to ``bound`` samples, by slot (None for
-    a slot not in ``slots``): (q_wb, flags) for a and b, (q_wb, flags, gyro bias) for c."""
-    out: list[tuple[np.ndarray, ...] | None] = [None, None, None]
-    for slot in slots:
-        bias = (np.empty((bound, 3)),) if slot == 2 else ()
-        out[slot] = (np.empty((bound, 4)), np.empty(bound, dtype=np.int64), *bias)
-    return out
+class _Period:
+    """A ``PeriodPlan`` and what Python reads back from it: the records, the in-loop
+    estimators (key, estimator, arrays), the consumers' estimates, and the views of its
+    outputs made for each number of samples k (for outputs reused from period to period)."""
 
+    __slots__ = ("plan", "physics", "truth", "outputs", "in_loop", "consumed", "versions", "views", "increments",
+                 "subintervals")
 
-def _lane_estimates(outputs: list[tuple[np.ndarray, ...] | None], k: int) -> list[Estimate | None]:
-    """The estimates of the first k samples in the period kernel's estimator outputs, by slot."""
-    return [None if slot is None else Estimate(*(a[:k] for a in slot)) for slot in outputs]
-
-
-def _buffer_view(views: dict, k: int, out: tuple, increments: int, subintervals: int,
-                 lane_out: list) -> tuple[ImuSamples, list[Estimate | None]]:
-    """The samples and the lane's estimates in the first k rows of reused outputs (status
-    -1; ``_sensor_buffers``), made once for each k."""
-    view = views.get(k)
-    if view is None:
-        view = views[k] = (MPU9250._samples(-1, k, out, increments, subintervals), _lane_estimates(lane_out, k))
-    return view
-
-
-class PeriodHook(NamedTuple):
-    """A caller's own work after each period, run in the period kernel's call when the
-    period is planned (``_PeriodPlan``): one call into compiled code and its Python less per
-    period, each a few microseconds in the loop (the physics evicts them from the caches).
-
-    ``kernel(period, q, *args)`` runs ``_sense_estimate_period(*period)`` and, on its status
-    -1, the work on the period's samples (``_period_samples(period, k)``), and returns the
-    (status, k); ``q`` holds the q_wb outputs (one row per possible sample) of the lane's
-    ``estimates`` named, in their order. After ``step``, ``CoSimulation._hook_ran`` tells
-    whether it ran; when not, the caller does the work itself on what ``step`` returned."""
-
-    kernel: Callable
-    estimates: tuple[str, ...]
-    args: tuple
-
-
-class _PeriodPlan:
-    """The period kernel's arguments, gathered once for the periods that follow while they
-    hold: for a co-simulation whose caller consumes each period's outputs within the period
-    (``_sensor_buffers``) and whose estimators all run in the kernel (``_lane_only``).
-
-    Every array in them stays the same object while the simulation runs on, except those
-    ``after`` checks: the sensor's parameters and state, the estimators' coefficients and
-    states (a reset, a restored state or a change of parameters replaces them; BISO's
-    change of equal gains writes its coefficients in place), and the caller's
-    ``PeriodHook``, run in the same call. Two variants alternate: each
-    writes the truth rows into its own array and reads the newest row of the other's as
-    the row before the period. Which one is next is told by the identity of
-    ``_last_truth_row``; after a reset or a restored state (None, or a new row) none is,
-    and the general path plans again."""
-
-    def __init__(self, sim: "CoSimulation", args: list, lane: tuple, lane_out: list, views: dict):
-        imu, hook = sim.imu, sim._period_hook
-        self._sources = ((imu, "_cp", imu._cp), (imu, "_cs", imu._cs), (imu, "_chs", imu._chs),
-                         (sim, "_period_hook", hook),
-                         *((est, name, getattr(est, name)) for _, est, _ in lane for name in ("_coef", "_state")))
-        first = args[_ARG_PACKED]
-        second = np.empty_like(first)
-        self.first_row, second_row = Truth._of(first[-1:]), Truth._of(second[-1:])
-        reads_second, reads_first = list(args), list(args)
-        reads_second[_ARG_BEFORE] = second_row.packed
-        reads_first[_ARG_BEFORE], reads_first[_ARG_PACKED] = self.first_row.packed, second
-        self._next = {self.first_row: (reads_first, second_row), second_row: (reads_second, self.first_row)}
-        self._buffers = (views, tuple(args[_ARG_OUT:_ARG_OUT + 4]), sim._increment_orders, sim._subintervals,
-                         args[_ARG_AT], lane_out)
-        self._slots = tuple((key, slot) for key, _, slot in lane)
-        self._views: dict[int, tuple] = {}
-        slots = dict(self._slots)
-        self.hook = None  # (kernel, q outputs, args) of the caller's hook, when its estimates are in the lane
-        if hook is not None and all(key in slots for key in hook.estimates):
-            self.hook = (hook.kernel, tuple(lane_out[slots[key]][0] for key in hook.estimates), hook.args)
-
-    def after(self, last_row: Truth | None) -> tuple[list, Truth] | None:
-        """The arguments for the period after the one whose newest truth row is ``last_row``
-        and the newest row they leave, or None when the plan no longer holds."""
-        variant = self._next.get(last_row)
-        if variant is None:
-            return None
-        for owner, name, value in self._sources:
-            if getattr(owner, name) is not value:
-                return None
-        return variant
+    def __init__(self, plan, physics, truth, outputs, in_loop, consumed, versions, increments, subintervals):
+        self.plan, self.physics, self.truth, self.outputs, self.consumed = plan, physics, truth, outputs, consumed
+        self.in_loop, self.versions, self.increments, self.subintervals = in_loop, versions, increments, subintervals
+        self.views: dict[int, tuple] = {}
 
     def view(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """What a period of k samples returns: the samples, the truth at them, the estimates
-        (views of the reused arrays, made once for each k)."""
-        view = self._views.get(k)
+        """The samples, the truth at them and the in-loop estimates of the first k rows."""
+        view = self.views.get(k)
         if view is None:
-            views, out, increments, subintervals, at, lane_out = self._buffers
-            samples, estimates = _buffer_view(views, k, out, increments, subintervals, lane_out)
-            view = self._views[k] = (samples, Truth._of(at[:k]), {key: estimates[slot] for key, slot in self._slots})
+            out = self.outputs
+            samples = MPU9250._samples(SENSE_OK, k, (out.floats, out.words, out.status_bytes, out.flags),
+                                       self.increments, self.subintervals)
+            estimates = {key: est.loop_estimate(arrays, k) for key, est, arrays in self.in_loop}
+            view = self.views[k] = (samples, Truth._of(self.truth.at[:k]), estimates)
         return view
+
+    def copy(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``view(k)`` in arrays of their own (for a caller that keeps them: the log)."""
+        out = self.outputs
+        samples = MPU9250._samples(SENSE_OK, k, (out.floats.copy(), out.words.copy(), out.status_bytes.copy(),
+                                                 out.flags.copy()), self.increments, self.subintervals)
+        estimates = {}
+        for key, est, arrays in self.in_loop:
+            e = est.loop_estimate(arrays, k)
+            estimates[key] = Estimate(e.q_wb.copy(), e.flags.copy(), None if e.gyro_bias_b is None else e.gyro_bias_b.copy())
+        return samples, Truth._of(self.truth.at[:k].copy()), estimates
 
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
@@ -266,7 +199,7 @@ def _estimator_specs(estimators: Iterable[str | EstimatorSpec | tuple]) -> tuple
         elif isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and isinstance(item[1], Mapping):
             specs.append(EstimatorSpec(item[0], dict(item[1])))
         elif callable(getattr(item, "update", None)):
-            name = getattr(item, "name", None) or type(item).__name__
+            name = getattr(item, "name", None) or (item.method if isinstance(item, Estimator) else type(item).__name__)
             specs.append(EstimatorSpec(str(name), instance=item))
         else:
             raise ValueError(f"estimators: expected names, (name, params) pairs, EstimatorSpec or objects with "
@@ -316,6 +249,17 @@ class CoSimulation:
         :meth:`result` (the default). Users that take each period's outputs from :meth:`step`
         (the environments, the FMUs) pass False: memory then stays constant however long the
         run, ``run()`` returns None and ``result()`` is refused.
+    reuse_outputs : the arrays ``step()`` returns (samples, truth, estimates) are views of
+        buffers the next ``step()`` writes again: for callers that are done with each
+        period's outputs before the next (the environments, the FMUs); with ``keep_log=False``.
+
+    Attributes
+    ----------
+    fast_path : True (default): each period (``step()``) or block of periods (``run()``) is
+        one call of ``biso_cosim.loop.loop_kernel`` running the sensor, every estimator that
+        declares a ``loop_kernel`` and every attached consumer; False: the general path, one
+        Python call per stage (the same numbers bit for bit: for tests and debugging). Local
+        magnetic disturbances and a start-up gyro calibration take the general path.
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
@@ -323,7 +267,7 @@ class CoSimulation:
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, registers: Mapping[str, int] | None = None,
                  mounting: Any = None, gyro_calibration_s: float = 0.0, gnss: Any = "auto",
                  gnss_rate_hz: float = 5.0, navigators: Iterable = (), physics_rate_hz: float = 1000.0,
-                 control_rate_hz: float = 50.0, keep_log: bool = True):
+                 control_rate_hz: float = 50.0, keep_log: bool = True, reuse_outputs: bool = False):
         self.route = load_route(route)
         if duration_s is None:
             duration_s = math.ceil(self.route.nominal_duration_s + 10.0)
@@ -336,16 +280,17 @@ class CoSimulation:
             raise ValueError(f"gyro_calibration_s must be in [0, 60] s, got {gyro_calibration_s!r}")
         if not isinstance(keep_log, bool):
             raise TypeError(f"keep_log must be True or False, got {keep_log!r}")
+        if not isinstance(reuse_outputs, bool) or (reuse_outputs and keep_log):
+            raise ValueError(f"reuse_outputs must be True or False, and False with keep_log=True, got {reuse_outputs!r}")
         self.keep_log = keep_log
-        # {} from a caller that is done with each step's samples, truth and estimates before the
-        # next step (the environments): without a log the sensor and the period kernel's
-        # estimators then write every period into the same arrays (n input rows -> (sensor
-        # outputs, int64 flags, estimator outputs by slot, {k: (ImuSamples, estimates by slot)
-        # of the first k rows})), and the truth at the samples too once a ``_PeriodPlan`` holds.
-        self._sensor_buffers: dict[int, tuple] | None = None
-        self._plan: _PeriodPlan | None = None  # the period kernel's arguments, gathered once (see there)
-        self._period_hook: PeriodHook | None = None  # a caller's work in the planned periods' kernel call
-        self._hook_ran = False  # whether it ran in the last step
+        self.reuse_outputs = reuse_outputs
+        self.fast_path = True
+        self._consumers: tuple[PeriodWork, ...] = ()
+        self._consumers_version = 0
+        # the period call's clock (``loop.CLOCK_*``) and the truth row before the next period
+        self._clock = np.zeros(CLOCK_SIZE)
+        self._before = np.zeros((1, Truth.WIDTH))
+        self._periods: dict[tuple, _Period] = {}  # reused plans (``reuse_outputs``), by rows
         self.duration_s = float(duration_s)
         self.seed = int(seed)
         self.gyro_calibration_s = float(gyro_calibration_s)
@@ -360,6 +305,12 @@ class CoSimulation:
         self.registers = dict(registers or {})
         self.estimators = {}
         for spec in self.specs:
+            if isinstance(spec.instance, Estimator):  # a user's estimator built on ours: it joins as ours do
+                if spec.instance.fs_hz != self.imu.output_rate_hz:
+                    raise ValueError(f"estimator {spec.key!r}: fs_hz is {spec.instance.fs_hz!r}, the sensor's output "
+                                     f"rate {self.imu.output_rate_hz!r} Hz")
+                self.estimators[spec.key] = spec.instance
+                continue
             if spec.instance is not None:
                 self.estimators[spec.key] = _UserEstimator(spec.instance, spec.key)
                 continue
@@ -368,14 +319,6 @@ class CoSimulation:
             est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
             self.estimators[spec.key] = est
         self._wants_odometry = any("speed_mps" in getattr(e, "inputs", ()) for e in self.estimators.values())
-        # the estimators the period kernel runs itself when they can (``_lane``): (key, estimator, slot)
-        self._lane_estimators: tuple[tuple[str, Estimator, int], ...] = ()
-        free = list(_LANE_SLOTS)
-        for key, est in self.estimators.items():
-            slot = next((entry for entry in free if type(est) is entry[0]), None)
-            if slot is not None:
-                free.remove(slot)
-                self._lane_estimators += ((key, est, slot[1]),)
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
         self.gnss_receiver = self._make_receiver(gnss, gnss_rate_hz, physics_rate_hz)
         # what a state must share with this co-simulation to be restored into it
@@ -385,9 +328,6 @@ class CoSimulation:
                                [(s.key, s.name, sorted((k, repr(v)) for k, v in s.params.items())) for s in self.specs],
                                sorted(navigators) if not isinstance(navigators, str) else navigators))
         self._setup_navigators(navigators)
-        # the period kernel's outputs are all there is to a period (``_estimate``)
-        self._lane_only = (len(self._lane_estimators) == len(self.estimators) and self.gnss_receiver is None
-                           and not self.navigator_params and not self.keep_log)
         self._calibrate_gyro()
         self._reset_navigators()
         self._reset_logs()
@@ -617,13 +557,74 @@ class CoSimulation:
         the end of the period: ``vehicle.driver.state`` is then where the step left the car
         (scripted periods record it at their start, where the driver's command is made).
         """
-        self._hook_ran = False
-        if self.magnetic.disturbances:
+        if not self._loop_ready():
             return self._sense(self._drive(command))
         self._command(command)
         rows, first, t_start = self.vehicle._step_period()  # rows None: still in MuJoCo's sensor history
         self._period_done(command)
-        return self._sense_period(rows, first, t_start)
+        return self._sense_loop(rows, first, t_start)
+
+    # ------------------------------------------------------------------ consumers
+    def attach(self, work: PeriodWork) -> None:
+        """Run ``work`` (``biso_cosim.loop.PeriodWork``: a jitted ``kernel(samples, q,
+        arrays)``) after every period from now on, on the period's samples and the ``q_wb``
+        of the estimators it names: inside the period call on the fast path, after the
+        estimators on the general path (the same kernel either way)."""
+        if not isinstance(work, PeriodWork):
+            raise TypeError(f"attach expects a biso_cosim.loop.PeriodWork, got {type(work).__name__}")
+        unknown = [key for key in work.estimates if key not in self.estimators]
+        if unknown:
+            raise ValueError(f"attach: no estimator {unknown[0]!r} in this co-simulation; have {', '.join(self.estimators)}")
+        self._consumers += (work,)
+        self._consumers_version += 1
+
+    def detach_all(self) -> None:
+        """Remove every attached ``PeriodWork``."""
+        self._consumers = ()
+        self._consumers_version += 1
+
+    @property
+    def consumers(self) -> tuple[PeriodWork, ...]:
+        """The attached per-period work, in the order it runs."""
+        return self._consumers
+
+    def _consume(self, samples: ImuSamples, at_samples: Truth, outputs: Mapping[str, Estimate],
+                 odometry: np.ndarray | None, imu_flags: np.ndarray | None) -> None:
+        """The attached work on the general path's period (the fast path runs it in its call)."""
+        if not self._consumers:
+            return
+        k = len(samples.t_s)
+        flags = samples.flags.astype(np.int64) if imu_flags is None else imu_flags
+        if self._wants_odometry and odometry is None:
+            odometry = self._odometry_mps(at_samples)
+        speed = odometry if self._wants_odometry else np.empty(0)
+        view = LoopSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8), flags[:k],
+                           speed[:k] if speed.shape[0] else speed, at_samples.packed)
+        for work in self._consumers:
+            work.kernel(view, tuple(outputs[key].q_wb for key in work.estimates), work.arrays)
+
+    @property
+    def loop_estimators(self) -> tuple[str, ...]:
+        """The estimators the period call runs now (``fast_path``; each declares a
+        ``loop_kernel`` and gives ``loop_arrays``): the others run by ``update`` after it."""
+        if not self._loop_ready():
+            return ()
+        return tuple(key for key, est in self.estimators.items()
+                     if callable(getattr(est, "loop_arrays", None)) and est.loop_arrays(0) is not None)
+
+    @property
+    def _last_truth_row(self) -> Truth | None:
+        """The newest truth row of the last period (the sample times of the next may reach
+        back to it), held in ``_before`` for the period call."""
+        return Truth._of(self._before.copy()) if self._clock[CLOCK_HAS_BEFORE] else None
+
+    @_last_truth_row.setter
+    def _last_truth_row(self, row: Truth | None) -> None:
+        if row is None:
+            self._clock[CLOCK_HAS_BEFORE] = 0.0
+        else:
+            self._before[:] = row.packed[-1:]
+            self._clock[CLOCK_HAS_BEFORE] = 1.0
 
     def _drive(self, command: DriverCommand | None = None) -> Truth:
         """Driver (or the given command) and physics for one control period."""
@@ -658,131 +659,107 @@ class CoSimulation:
         if self._finished_chunk is None and vehicle.driver.finished:
             self._finished_chunk = self._chunks_done
 
-    def _sense_period(self, rows: np.ndarray | None, first_step: int, t_start: float = 0.0
-                      ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """``_sense`` of one period's MuJoCo sensor rows, with the truth packing, the sensor's
-        inputs, the sensor, the truth at its samples, the wheel odometry there and the
-        estimators of ``_lane`` in one kernel call (``_period``): the same numbers as
-        ``_sense(vehicle._truth(rows, first_step))``, tested; the Earth's field alone (no
-        local disturbances). ``rows`` None: the rows of ``VehicleSim._step_period``, begun
-        at ``t_start``, read from MuJoCo's sensor history by the kernel; for a caller that
-        consumes each period's outputs within the period, the call's arguments then serve
-        the periods after (``_PeriodPlan``)."""
-        if rows is None and self._plan is not None:
-            variant = self._plan.after(self._last_truth_row)
-            if variant is not None:
-                return self._sense_planned(*variant, first_step, t_start)
-        vehicle, imu = self.vehicle, self.imu
-        orders, subs = self._increment_orders, self._subintervals
-        history = (vehicle._history, vehicle._history_layout, t_start, vehicle._warnings, vehicle._sensordata,
-                   vehicle._rows)
-        if rows is not None:
-            history = (_NO_HISTORY, vehicle._history_layout, 0.0, vehicle._warnings, vehicle._sensordata, rows)
-        n = history[-1].shape[0]
-        packed = np.empty((n, Truth.WIDTH))
-        if self._sensor_buffers is None or self.keep_log:
-            out = imu._outputs(n, orders, subs)
-            bound = out[3].shape[0]
-            flags64, lane_out, views = np.empty(bound, dtype=np.int64), None, None
-        else:
-            if n not in self._sensor_buffers:
-                out = imu._outputs(n, orders, subs)
-                bound = out[3].shape[0]
-                self._sensor_buffers[n] = (out, np.empty(bound, dtype=np.int64), _lane_outputs(bound), {})
-            out, flags64, lane_out, views = self._sensor_buffers[n]
-            bound = flags64.shape[0]
-        at = np.empty((bound, Truth.WIDTH))
-        odometry = np.empty(bound if self._wants_odometry else 0)
-        before = _NO_ROWS if self._last_truth_row is None else self._last_truth_row.packed
-        lane = self._lane()
-        if lane and lane_out is None:  # (a log keeps them: new arrays every period)
-            lane_out = _lane_outputs(bound, [slot for _, _, slot in lane])
-        lane_args = list(_NO_LANE)
-        scratch = _NO_SCRATCH
-        for _, est, slot in lane:
-            lane_args[4 * slot:4 * slot + 2 + len(lane_out[slot])] = est._coef, est._state, *lane_out[slot]
-            if slot < 2:
-                scratch = est._scratch
-        args = [*history, vehicle._gather, first_step, vehicle.physics_rate_hz, self.magnetic.earth.field_enu_ut,  # (_ARG_*)
-                before, *imu._kernel_state(), orders, subs, self._imu_t0_s, Truth.QUAT_COLUMN, packed, *out, at,
-                vehicle.index.wheel_radius_m, odometry, flags64, _NO_VELOCITY, scratch, *lane_args]
-        status, k = _sense_estimate_period(*args)
-        result = self._period_outcome(status, k, first_step, packed, out, at, odometry, flags64, lane, lane_out, views)
-        if status == -1 and rows is None and views is not None and lane and self._lane_only:
-            self._plan = _PeriodPlan(self, args, lane, lane_out, views)
-            self._last_truth_row = self._plan.first_row
-        return result
+    def _loop_ready(self) -> bool:
+        """Whether periods run as one period call (``fast_path``): not with local magnetic
+        disturbances (the call takes the Earth's field alone) or a gyro offset to remove
+        before the estimators."""
+        return self.fast_path and not self.magnetic.disturbances and not self._has_gyro_offset
 
-    def _sense_planned(self, args: list, last_row: Truth, first_step: int, t_start: float
-                       ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """``_sense_period`` of the rows in MuJoCo's sensor history by the ``_PeriodPlan``'s
-        arguments ``args`` (``_PeriodPlan.after``: they hold), which leave ``last_row``."""
-        args[_ARG_T_START], args[_ARG_FIRST_STEP] = t_start, first_step
-        hook = self._plan.hook
-        if hook is None:
-            status, k = _sense_estimate_period(*args)
-        else:
-            kernel, q, hook_args = hook
-            status, k = kernel(tuple(args), q, *hook_args)
-        if status == -1:
-            self._hook_ran = hook is not None
-            self._last_truth_row = last_row
-            samples, at_samples, estimated = self._plan.view(k)
+    def _versions(self) -> tuple:
+        """What a reused plan depends on beyond its own arrays: the sensor's and the
+        estimators' array versions, and the attached work."""
+        return (self.imu.arrays_version, self._consumers_version,
+                *(getattr(est, "arrays_version", 0) for est in self.estimators.values()))
+
+    def _period(self, rows: np.ndarray | None, packed_rows: bool) -> _Period:
+        """The period call for ``rows`` (None: MuJoCo's sensor history, read into the
+        vehicle's rows; else copied into the plan's own rows), gathered once for each kind
+        and number of rows and reused while the versions hold."""
+        vehicle = self.vehicle
+        mode = "history" if rows is None else "packed" if packed_rows else "rows"
+        key = (mode, vehicle._rows.shape[0] if rows is None else rows.shape[0])
+        period = self._periods.get(key)
+        if period is not None and period.versions == self._versions():
+            if rows is not None:
+                np.copyto(period.physics.rows, rows)
+            return period
+        history = vehicle._history if rows is None else _NO_HISTORY
+        rows = vehicle._rows if rows is None else rows.copy()
+        n = rows.shape[0]
+        orders, subs = self._increment_orders, self._subintervals
+        floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
+        bound = flags.shape[0]
+        physics = PhysicsRows(history, vehicle._history_layout, vehicle._warnings, vehicle._sensordata, rows,
+                              _TRUTH_GATHER if packed_rows else vehicle._gather, float(vehicle.physics_rate_hz))
+        sensor = SensorArrays(*self.imu.loop_arrays(), orders, subs, float(self._imu_t0_s))
+        truth = TruthArrays(self.magnetic.earth.field_enu_ut, self._before, np.empty((n, Truth.WIDTH)),
+                            np.empty((bound, Truth.WIDTH)), float(vehicle.index.wheel_radius_m),
+                            np.empty(bound if self._wants_odometry else 0))
+        outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
+        in_loop = []
+        for label, est in self.estimators.items():
+            arrays = est.loop_arrays(bound) if callable(getattr(est, "loop_arrays", None)) else None
+            if arrays is not None:
+                in_loop.append((label, est, arrays))
+        index = {label: arrays for label, _, arrays in in_loop}
+        consumers = []
+        for work in self._consumers:
+            if any(label not in index for label in work.estimates):  # an estimate made after the call
+                consumers = None
+                break
+            consumers.append((work.kernel, tuple(index[label].q_wb for label in work.estimates), work.arrays))
+        plan = prepare(PeriodPlan(physics, sensor, truth, outputs, self._clock,
+                                  tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop), consumers or ()))
+        period = _Period(plan, physics, truth, outputs, tuple(in_loop), consumers is not None, self._versions(), orders,
+                         subs)
+        self._periods[key] = period
+        return period
+
+    def _sense_loop(self, rows: np.ndarray | None, first_step: int, t_start: float = 0.0, packed_rows: bool = False
+                    ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``_sense`` of one period's (or block's) rows by one period call
+        (``biso_cosim.loop.loop_kernel``): the truth packing, the sensor's inputs, the
+        sensor, the truth at its samples, the wheel odometry there, the in-loop estimators
+        and the attached work; then what remains in Python (the estimators without a loop
+        kernel, GNSS, navigators, the log). The same numbers as the general path, tested.
+        ``rows`` None: the rows of ``VehicleSim._step_period``, begun at ``t_start``, read
+        from MuJoCo's sensor history in the call; ``packed_rows``: ``rows`` are packed truth."""
+        period = self._period(rows, packed_rows)
+        clock = self._clock
+        clock[CLOCK_T_START], clock[CLOCK_FIRST_STEP] = t_start, first_step
+        status, k = loop_kernel(period.plan)
+        if status == SENSE_RESTEP:  # the history did not hold the rows (nothing changed): the period stepped again
+            return self._sense_loop(self.vehicle._restep(self.vehicle._rows, k), first_step)
+        truth = Truth._of(period.truth.packed)
+        if status >= 0 or status == SENSE_POSITION:  # inputs refused, nothing changed: the general path's errors
+            return self._sense_general(truth)
+        if status != SENSE_OK:  # (-2: raises) or the sensor and the physics out of step (raises)
+            out = period.outputs
+            samples = self.imu._samples(status, k, (out.floats, out.words, out.status_bytes, out.flags),
+                                        self._increment_orders, self._subintervals)
+            self._truth_at(samples.t_s, truth)
+        samples, at_samples, estimated = period.view(k) if self.reuse_outputs else period.copy(k)
+        if (period.consumed and len(estimated) == len(self.estimators) and not self.keep_log
+                and self.gnss_receiver is None and not self.navigators):  # the call was the whole period
             return samples, at_samples, dict(estimated)
-        # nothing changed, or an error to raise: as the general path goes on (estimators only run on -1)
-        self._plan = None
-        out = tuple(args[_ARG_OUT:_ARG_OUT + 4])
-        return self._period_outcome(status, k, first_step, args[_ARG_PACKED], out, args[_ARG_AT],
-                                    args[_ARG_ODOMETRY], args[_ARG_FLAGS], (), None, None)
-
-    def _period_outcome(self, status: int, k: int, first_step: int, packed: np.ndarray, out: tuple,
-                        at: np.ndarray, odometry: np.ndarray, flags64: np.ndarray, lane: tuple,
-                        lane_out: list | None, views: dict | None) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """What follows the period kernel's call (``status``, ``k``) on these arrays: the
-        samples and estimates, the period stepped again, or the general path's errors."""
-        if status == -5:  # the history did not hold the rows (nothing changed): the period stepped again
-            return self._sense_period(self.vehicle._restep(self.vehicle._rows, k), first_step)
-        truth = Truth._of(packed)
-        if status >= 0 or status == -3:  # inputs refused, nothing changed: the errors of the general path
-            return self._sense(truth)
-        orders, subs = self._increment_orders, self._subintervals
-        if views is None or status != -1:
-            samples = self.imu._samples(status, k, out, orders, subs)  # (raises on status -2)
-            estimates = _lane_estimates(lane_out, k) if lane else None
-        else:
-            samples, estimates = _buffer_view(views, k, out, orders, subs, lane_out)
-        if status == -4:
-            self._truth_at(samples.t_s, truth)  # raises: the sensor and the physics are out of step
-        self._last_truth_row = Truth._of(packed[-1:])
-        if self._has_gyro_offset:
-            self._remove_gyro_offset(samples)
-        estimated = {key: estimates[slot] for key, _, slot in lane} if lane else None
-        return self._estimate(truth, samples, Truth._of(at[:k]), odometry[:k], flags64[:k], estimated)
-
-    def _lane(self) -> tuple[tuple[str, Estimator, int], ...]:
-        """The estimators the period kernel runs itself this period (``_lane_estimators``:
-        the first two BISO and the first BISO+), when each would take
-        ``Estimator._update_prechecked``'s short path with the kernel's inputs. That is, they
-        have run once through the checks of ``update`` (``_prechecked``), BISO integrates
-        the gyro readings (``gyro_step="hold"``: no increments), and the readings need no
-        offset removed first. The same arithmetic on the same arrays as their own
-        ``update``: the same numbers. Empty when not every one of them can."""
-        lane = self._lane_estimators
-        if self._has_gyro_offset:
-            return ()
-        for _, est, slot in lane:
-            if est._prechecked is None or (slot < 2 and est._params.gyro_step != "hold"):
-                return ()
-        return lane
+        return self._estimate(truth, samples, at_samples, period.truth.odometry[:k], period.outputs.imu_flags[:k],
+                              estimated, consumed=period.consumed)
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
+        if self._loop_ready() and len(truth):
+            first_step = int(round(truth.packed[0, 0] * self.vehicle.physics_rate_hz))
+            return self._sense_loop(truth.packed, first_step, packed_rows=True)
+        return self._sense_general(truth)
+
+    def _sense_general(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """``_sense`` by the general path: one Python call per stage."""
         if self.magnetic.disturbances:
             omega_b, force_b = truth.omega_b, truth.specific_force_b
             mag_b = self.magnetic.field_b(truth.q_wb, truth.pos_w)
         else:  # the Earth's field alone: the sensor's three inputs by one kernel call
             omega_b, force_b, mag_b = np.empty((3, len(truth), 3))
-            if not _sensor_inputs(truth.packed, self.magnetic.earth.field_enu_ut, omega_b, force_b, mag_b):
+            if not sensor_inputs(truth.packed, self.magnetic.earth.field_enu_ut, omega_b, force_b, mag_b):
                 self.magnetic.field_b(truth.q_wb, truth.pos_w)  # raises, naming the positions
         samples = self.imu.simulate(omega_b, force_b, mag_b, increments=self._increment_orders,
                                     subintervals=self._subintervals)
@@ -792,14 +769,13 @@ class CoSimulation:
         return self._estimate(truth, samples, self._truth_at(samples.t_s, truth))
 
     def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None,
-                  imu_flags: np.ndarray | None = None, estimated: Mapping[str, Estimate] | None = None
-                  ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
-        """GNSS, navigators and estimators over the sensor's samples (and the log);
-        ``odometry``, ``imu_flags``: the wheel odometry at the samples and their flags as
-        int64, when already at hand; ``estimated``: the outputs of estimators already run
-        on the samples (the period kernel's, ``_lane``)."""
-        if estimated is not None and self._lane_only:  # every estimator has run, and nothing else is due
-            return samples, at_samples, estimated
+                  imu_flags: np.ndarray | None = None, estimated: Mapping[str, Estimate] | None = None,
+                  consumed: bool = False) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+        """GNSS, navigators and estimators over the sensor's samples (and the log), then the
+        attached work unless ``consumed`` (done in the period call); ``odometry``,
+        ``imu_flags``: the wheel odometry at the samples and their flags as int64, when
+        already at hand; ``estimated``: the outputs of estimators already run on the samples
+        (in the period call)."""
         fixes = None
         if self.gnss_receiver is not None:
             fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
@@ -839,6 +815,8 @@ class CoSimulation:
                 self._log["gnss"].append(fixes)
             for key, out in outputs.items():
                 self._est_log[key].append(out)
+        if not consumed:
+            self._consume(samples, at_samples, outputs, odometry, imu_flags)
         return samples, at_samples, outputs
 
     def run(self, progress: bool = False, block_periods: int | None = None,

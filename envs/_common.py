@@ -26,8 +26,9 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from biso_cosim.cosim import CoSimulation, EstimatorSpec, PeriodHook
-from biso_cosim.envs._kernels import _inside, _push_window
+from biso_cosim.cosim import CoSimulation, EstimatorSpec
+from biso_cosim.loop import PeriodWork
+from biso_cosim.envs._kernels import _inside, _push_window, _window_work
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import ImuSamples, Profile
@@ -398,9 +399,9 @@ class CosimEnv(gym.Env):
     def _build(self, route: Route, seed: int) -> CoSimulation:
         self._check_route(route)
         duration = self._episode_duration_s or self._default_duration_s(route)
-        sim = CoSimulation(route, duration_s=duration + self._reset_time_s(), seed=seed, **self._sim_options)
-        sim._sensor_buffers = {}  # each step's samples are consumed within the step (see CoSimulation)
-        return sim
+        # each step's outputs are consumed within the step: the co-simulation reuses their arrays
+        return CoSimulation(route, duration_s=duration + self._reset_time_s(), seed=seed, reuse_outputs=True,
+                            **self._sim_options)
 
     def _begin_episode(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
         """Seed the episode, set up its route and sensor, and rewind the co-simulation."""
@@ -418,7 +419,8 @@ class CosimEnv(gym.Env):
             self._sim.seed = sensor_seed
             self._sim.reset()
         self._window.clear()
-        self._sim._period_hook = self._period_hook()
+        self._sim.detach_all()
+        self._sim.attach(self._period_work())
         info = {"episode_seed": episode_seed, "sensor_seed": sensor_seed, "route_seed": route_seed,
                 "route": self._sim.route.name}
         if self._gnss is not None:
@@ -434,20 +436,14 @@ class CosimEnv(gym.Env):
             self._gnss.push(truth)
         if truth.packed.shape[0]:
             self._newest_row = truth.packed[-1]
-        if not self._sim._hook_ran:
-            self._on_period(samples, truth, outputs)
         if self.render_mode == "human":
             self.render()
         return samples, truth, outputs
 
-    def _on_period(self, samples: ImuSamples, truth: Truth, outputs: dict) -> None:
-        """What is updated after every control period: the IMU window (a subclass adds its
-        own updates, in one kernel call with the window's)."""
-        self._window.push(samples)
-
-    def _period_hook(self) -> PeriodHook | None:
-        """``_on_period``'s work as a hook of the co-simulation's period kernel (None: none)."""
-        return None
+    def _period_work(self) -> PeriodWork:
+        """What is updated after every control period, attached to the co-simulation: the
+        IMU window (a subclass adds its own updates, in one kernel with the window's)."""
+        return PeriodWork(_window_work, (self._window.values,))
 
     def _first_period(self, command: DriverCommand | None = None):
         """Advance from the reset until the observation holds a sample: one period at the

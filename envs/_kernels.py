@@ -9,15 +9,14 @@ import math
 import numpy as np
 
 from biso_cosim._numba import jit
-from biso_cosim._period import _period_samples, _sense_estimate_period
-from biso_cosim.estimators.biso import _cutoff_gains, _write_equal_gains
+from biso_cosim.estimators.biso import _cutoff_gains
 from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls
 
 __all__ = ["_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
-           "_tuning_period", "_driving_period", "_attitude_step", "_tuning_step", "_driving_step"]
+           "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work"]
 
 _Q0, _Q1 = TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.q_wb + 4  # a packed truth row's q_wb
 
@@ -74,13 +73,12 @@ def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, wheel_rates, dri
 
 
 @jit
-def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading_l, coef, values):
+def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading_l, values):
     """GainTuning-v0's action for BISO tuned by f_c and r alone, in its closed form, when
     it is inside [low, high] (``_inside``) and is not the ``gains`` in force: the values it
     stands for into values[:m] (``params_from_action``: scales' rows are low, high / low,
     high − low and 1 for a log scale), k and k_p into values[m], values[m + 1]
-    (``gains_from_cutoff`` of f_c, k_p times r), the coefficients ``coef`` written in place
-    (``_write_equal_gains``: ``BisoEstimator.set_params``' short path) and a into ``gains``.
+    (``gains_from_cutoff`` of f_c, k_p times r; for ``BisoEstimator.retune``) and a into ``gains``.
     Returns 1 then, 0 for the gains in force, and -1, with nothing written, when a is not
     inside."""
     if not _inside(a, low, high):
@@ -97,7 +95,6 @@ def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading
     k, kp = _cutoff_gains(values[cutoff_index], reading_l)
     kp *= values[ratio_index]
     values[m], values[m + 1] = k, kp
-    _write_equal_gains(coef, k, kp, reading_l)
     for i in range(m):
         gains[i] = a[i]
     return 1
@@ -262,39 +259,41 @@ def _route_ahead(path_x, path_y, path_s, s, offsets, x, y, yaw, out):
         out[i, 1] = -sn * dx + c * dy
 
 
-# --------------------------------------------------------------------------- period hooks
-# Each environment's work after a period, in the period kernel's call (``cosim.PeriodHook``):
-# ``_sense_estimate_period`` of the period's arguments, then on status -1 the work on its
-# samples, with ``q`` the q_wb outputs of the estimators the environment named.
+# --------------------------------------------------------------------------- per-period work
+# Each environment's work after a period (``biso_cosim.loop.PeriodWork``, attached to the
+# co-simulation): ``kernel(samples, q, arrays)`` on the period's ``LoopSamples`` (k rows),
+# ``q`` the q_wb outputs of the estimators the environment named (their first k rows are
+# the period's), ``arrays`` the environment's own; the same call on both of the loop's paths.
 
 
 @jit
-def _attitude_step(period, q, window, baseline_q):
-    """A period, and ``_attitude_period`` on it (q: the baseline's)."""
-    status, k = _sense_estimate_period(*period)
-    if status == -1:
-        gyro, accel, mag, fresh, _ = _period_samples(period, k)
-        _attitude_period(window, gyro, accel, mag, fresh, q[0][:k], baseline_q)
-    return status, k
+def _window_work(samples, q, arrays):
+    """The IMU window alone (arrays: (window,))."""
+    _push_window(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh)
 
 
 @jit
-def _tuning_step(period, q, window, tuned_q, baseline_q, errors):
-    """A period, and ``_tuning_period`` on it (q: the tuned copy's, the baseline's)."""
-    status, k = _sense_estimate_period(*period)
-    if status == -1:
-        gyro, accel, mag, fresh, at = _period_samples(period, k)
-        _tuning_period(window, gyro, accel, mag, fresh, q[0][:k], q[1][:k], at[:, _Q0:_Q1], tuned_q, baseline_q,
-                       errors)
-    return status, k
+def _attitude_work(samples, q, arrays):
+    """``_attitude_period`` (q: the baseline's; arrays: window, baseline_q)."""
+    k = samples.gyro_b.shape[0]
+    _attitude_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k],
+                     arrays[1])
 
 
 @jit
-def _driving_step(period, q, window, sensordata, steer_index, half_radius_m, dt, pose, q_est):
-    """A period, and ``_driving_period`` on it (q: the estimator's)."""
-    status, k = _sense_estimate_period(*period)
-    if status == -1:
-        gyro, accel, mag, fresh, at = _period_samples(period, k)
-        _driving_period(window, gyro, accel, mag, fresh, q[0][:k], at, sensordata, steer_index, half_radius_m, dt,
-                        pose, q_est)
-    return status, k
+def _tuning_work(samples, q, arrays):
+    """``_tuning_period`` (q: the tuned copy's, the baseline's; arrays: window, tuned_q,
+    baseline_q, errors (2,), samples (1,) int64: the period's number of samples)."""
+    k = samples.gyro_b.shape[0]
+    arrays[4][0] = k
+    _tuning_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k], q[1][:k],
+                   samples.truth[:, _Q0:_Q1], arrays[1], arrays[2], arrays[3])
+
+
+@jit
+def _driving_work(samples, q, arrays):
+    """``_driving_period`` (q: the estimator's; arrays: window, sensordata, steer_index,
+    half_radius_m, dt, pose, q_est)."""
+    k = samples.gyro_b.shape[0]
+    _driving_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k],
+                    samples.truth, arrays[1], arrays[2], arrays[3], arrays[4], arrays[5], arrays[6])

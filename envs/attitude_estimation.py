@@ -9,10 +9,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_period, _attitude_step
+from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work
 from biso_cosim.frames import quat_from_euler
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
@@ -186,12 +187,9 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         return a
 
     # ------------------------------------------------------------------ parts
-    def _period_hook(self) -> PeriodHook:
-        return PeriodHook(_attitude_step, ("baseline",), (self._window.values, self._baseline_q))
-
-    def _on_period(self, samples, truth, outputs) -> None:
-        _attitude_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh,
-                         outputs["baseline"].q_wb, self._baseline_q)
+    def _period_work(self) -> PeriodWork:
+        """The IMU window and the reference estimator's newest estimate (``_attitude_period``)."""
+        return PeriodWork(_attitude_work, (self._window.values, self._baseline_q), ("baseline",))
 
     def _state_info(self) -> dict[str, Any]:
         row = self._newest_row

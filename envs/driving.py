@@ -9,10 +9,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import _CONTROLS_APPLIED, DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
+from biso_cosim.cosim import _CONTROLS_APPLIED, DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _drive_action, _driving_period, _driving_step, _driving_view
+from biso_cosim.envs._kernels import _drive_action, _driving_view, _driving_work
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.driver import DriverCommand
 
@@ -232,24 +233,18 @@ class DrivingEnv(CosimEnv, EzPickle):
         p = v.data.sensordata[v.index.rear_axle_pos]
         return float(p[0]), float(p[1])
 
-    def _period_hook(self) -> PeriodHook:
-        vehicle = self._sim.vehicle
-        return PeriodHook(_driving_step, ("estimator",),
-                          (self._window.values, vehicle._sensordata, vehicle.index.steering_angle.start,
-                           0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose, self._q_est))
-
-    def _on_period(self, samples, truth, outputs) -> None:
-        """Dead-reckon the rear axle over the step's samples: the estimator's forward axis,
-        projected on the horizontal, times the rear axle's speed (no sideslip there).
+    def _period_work(self) -> PeriodWork:
+        """The IMU window, and the rear axle dead-reckoned over the step's samples: the
+        estimator's forward axis, projected on the horizontal, times the rear axle's speed
+        (no sideslip there; ``_driving_period``).
 
         The speed comes from the undriven front wheels, as a car's odometry does (the driven
         rear wheels slip under torque): in the bicycle model the rear axle moves at the front
-        wheels' speed times cos(steering angle). (With the IMU window's update: one kernel call.)"""
+        wheels' speed times cos(steering angle)."""
         vehicle = self._sim.vehicle
-        _driving_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh,
-                        outputs["estimator"].q_wb, truth.packed, vehicle._sensordata,
-                        vehicle.index.steering_angle.start, 0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz,
-                        self._pose, self._q_est)
+        return PeriodWork(_driving_work, (self._window.values, vehicle._sensordata, vehicle.index.steering_angle.start,
+                                          0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose,
+                                          self._q_est), ("estimator",))
 
     # ------------------------------------------------------------------ parts
     def _view(self) -> tuple[dict[str, Any], np.ndarray]:

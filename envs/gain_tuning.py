@@ -10,12 +10,13 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec, PeriodHook
+from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angles_to, _tune_closed, _tuning_period, _tuning_step
+from biso_cosim.envs._kernels import _angles_to, _tune_closed, _tuning_work
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -190,10 +191,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._gains[:] = self._initial_gains
         self._tuned_q[:] = (1.0, 0.0, 0.0, 0.0)
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
-        self._closed_coef: np.ndarray | None = None  # see reset
+        self._closed_version: int | None = None  # see reset
         self._baseline_q = self._tuned_q.copy()
         self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
-        self._period_samples = 0
+        self._period_samples = np.zeros(1, dtype=np.int64)  # the last period's number of samples
 
     def _tuned_values(self, params: Any) -> dict[str, float]:
         """The tuned parameters' values in an estimator's parameter record."""
@@ -265,7 +266,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         # closed form tuned by f_c > 0 and r alone (valid at the box's corners, so k > 0 and
         # k_p >= 0 inside; any other tuned parameter takes set_params)
         closed = self._closed_tuning and tuned._is_closed_form()
-        self._closed_coef = tuned._coef if closed else None
+        self._closed_version = tuned.arrays_version if closed else None
         self._gains[:] = self._initial_gains
         self._first_period()
         info.update(self._measure())
@@ -275,7 +276,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def step(self, action: Any):
         self._require_running()
         tuned = self._sim.estimators["tuned"]
-        if tuned._coef is self._closed_coef:  # (see reset)
+        if tuned.arrays_version == self._closed_version and tuned.closed_form:  # (see reset)
             self._tune_closed(action, tuned)
         else:
             a = self._check_action(action)
@@ -292,33 +293,33 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _set_gains(self, a: np.ndarray) -> None:
-        """Set the tuned copy's parameters from a checked action (``set_params``). The values
+        """Set the tuned copy's parameters from a checked action (``retune``). The values
         in force are then the values the action stands for (with the cross-link ratio also
         the k and k_p derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
         tuned = self._sim.estimators["tuned"]
         changes = self._changes(values)
-        tuned.set_params(**changes)
+        tuned.retune(**changes)
         if "k" in changes:
             values.update(k=changes["k"], k_p=changes["k_p"])
-        self._in_force = (tuned._params, values)
+        self._in_force = (tuned.params, values)
         self._gains[:] = a
 
     def _tune_closed(self, action: Any, tuned: Any) -> None:
         """``_check_action`` and ``_set_gains`` for BISO tuned by f_c and r in its closed
-        form (see reset): an action inside the bounds in one kernel call (``_tune_closed``:
-        the same numbers as set_params' short path), with the parameter record it made."""
+        form (see reset): an action inside the bounds in one kernel call (``_tune_closed``),
+        its gains set by ``BisoEstimator.retune`` (in place: the closed form's short path)."""
         a = self._action_array(action)
         space = self.action_space
         tune = (space.low, space.high, self._gains, self._scales, *self._closed_indices, self._reading == "L",
-                tuned._coef, self._closed_values)
+                self._closed_values)
         changed = _tune_closed(a, *tune)
         if changed < 0:  # not inside the bounds: refused (ValueError), or clipped and set
             changed = _tune_closed(self._bounded_action(a), *tune)
         if changed:
             values = self._closed_values.tolist()
-            tuned._record_equal_gains(values[-2], values[-1])
-            self._in_force = (tuned._params, dict(zip(self._closed_names, values)))
+            tuned.retune(k=values[-2], k_p=values[-1], cutoff_hz=None)
+            self._in_force = (tuned.params, dict(zip(self._closed_names, values)))
 
     def _params_in_force(self) -> dict[str, float]:
         """The tuned parameters of the tuned copy now (for BISO's cross-link ratio also k, k_p)."""
@@ -331,23 +332,17 @@ class GainTuningEnv(CosimEnv, EzPickle):
             self._in_force = (params, values)
         return dict(self._in_force[1])
 
-    def _period_hook(self) -> PeriodHook:
-        return PeriodHook(_tuning_step, ("tuned", "baseline"),
-                          (self._window.values, self._tuned_q, self._baseline_q, self._errors))
-
-    def _on_period(self, samples, truth, outputs) -> None:
+    def _period_work(self) -> PeriodWork:
         """The IMU window, and the mean errors of both copies over the period's samples with
-        their newest estimates (``_measure``'s): one kernel call."""
-        tuned = outputs["tuned"].q_wb
-        self._period_samples = tuned.shape[0]
-        _tuning_period(self._window.values, samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, tuned,
-                       outputs["baseline"].q_wb, truth.q_wb, self._tuned_q, self._baseline_q, self._errors)
+        their newest estimates (``_measure``'s; ``_tuning_period``)."""
+        return PeriodWork(_tuning_work, (self._window.values, self._tuned_q, self._baseline_q, self._errors,
+                                         self._period_samples), ("tuned", "baseline"))
 
     def _measure(self) -> dict[str, Any]:
         """Mean errors of both copies over the last period's samples, and the state at the newest."""
         newest = self._newest_row
         q_true = newest[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4]
-        if self._period_samples:
+        if self._period_samples[0]:
             error, baseline_error = self._errors.tolist()
         else:  # no sample this step (ODR below the control rate): the newest estimate stands
             error, baseline_error = _angles_to(self._tuned_q, self._baseline_q, q_true)

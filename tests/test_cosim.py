@@ -358,7 +358,7 @@ def test_sensor_inputs_kernel_equals_field_b_and_the_truth_columns():
     """The co-simulation's one kernel for the sensor's inputs (no local disturbances) gives
     the truth's rate and specific force and MagneticEnvironment.field_b, bit for bit, and
     reports a position that is not finite (field_b's refusal)."""
-    from biso_cosim._period import _sensor_inputs
+    from biso_cosim.loop import sensor_inputs as _sensor_inputs
     from biso_cosim.vehicle.sim import Truth
 
     sim = CoSimulation("figure8", duration_s=2.0, estimators=("poisson",))
@@ -383,30 +383,36 @@ def _assert_same_samples(a, b):
     assert np.array_equal(a.raw.words, b.raw.words) and np.array_equal(a.raw.status, b.raw.status)
 
 
-@pytest.mark.parametrize("options, lane", [
+@pytest.mark.parametrize("options, in_loop", [
     ({}, ["biso", "biso_plus", "poisson"]),  # (poisson is BISO without correction)
     ({"estimators": ("biso", ("biso", {"cutoff_hz": 2.0}, "second"), "biso_plus", ("biso", {}, "third"), "dcm_pi")},
-     ["biso", "second", "biso_plus"]),
+     ["biso", "second", "biso_plus", "third", "dcm_pi"]),
+    ({"navigators": ("two_sample",), "gnss": "consumer",
+      "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")},
+     ["biso", "biso_plus"]),  # (increments and GNSS fixes: after the period call)
     ({"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
       "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")}, []),
 ])
 @pytest.mark.parametrize("reuse", [False, True])
-def test_period_kernel_equals_the_general_path(options, lane, reuse):
-    """step() senses a period by one kernel (truth packing, sensor inputs, MPU-9250, truth at
-    the samples, and the estimators of its lane: two BISO and a BISO+): the same numbers, bit
-    for bit, as the general path of run()'s blocks; also when, as for the environments,
-    every period's samples and estimates are written into the same arrays. The lane is
-    empty when an estimator in it needs increments, or the readings an offset removed."""
+def test_period_kernel_equals_the_general_path(options, in_loop, reuse):
+    """step() senses a period by one call (truth packing, sensor inputs, MPU-9250, truth at
+    the samples, and every estimator that declares a loop kernel): the same numbers, bit for
+    bit, as the general path (``fast_path = False``); also when, as for the environments,
+    every period's samples and estimates are written into the same arrays. An estimator
+    whose settings need inputs the call does not give (increments, GNSS fixes) runs after
+    it; a gyro offset to remove first takes the general path."""
     opts = dict(options)
     estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
     specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label=e[2]) for e in estimators]
-    fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, keep_log=not reuse, **opts)
-    if reuse:
-        fused._sensor_buffers = {}
+    fused = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, keep_log=not reuse,
+                         reuse_outputs=reuse, **opts)
     general = CoSimulation("figure8", duration_s=4.0, seed=2, estimators=specs, **opts)
+    general.fast_path = False
+    assert list(fused.loop_estimators) == in_loop and general.loop_estimators == ()
+    previous = None
     while not fused.done:
         samples, truth, outputs = fused.step()
-        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        want_samples, want_truth, want_outputs = general.step()
         _assert_same_samples(samples, want_samples)
         assert np.array_equal(truth.packed, want_truth.packed)
         assert list(outputs) == list(want_outputs)
@@ -415,13 +421,12 @@ def test_period_kernel_equals_the_general_path(options, lane, reuse):
             assert np.array_equal(out.q_wb, want.q_wb) and np.array_equal(out.flags, want.flags), key
             assert (out.gyro_bias_b is None) == (want.gyro_bias_b is None), key
             assert out.gyro_bias_b is None or np.array_equal(out.gyro_bias_b, want.gyro_bias_b), key
-    assert [key for key, _, _ in fused._lane()] == lane
-    assert (fused._plan is not None) == (reuse and fused._lane_only)  # (the first set: every period planned)
+        if previous is not None and in_loop and len(samples.t_s):  # views of the one set of arrays, or new ones
+            assert np.shares_memory(samples.gyro_b, previous) == reuse
+        previous = samples.gyro_b
     for key, est in fused.estimators.items():
         assert np.array_equal(est.get_state().values, general.estimators[key].get_state().values), key
-    if reuse:
-        assert samples.gyro_b.base is not None and len(fused._sensor_buffers) == 1  # views of the one set of arrays
-    else:
+    if not reuse:
         assert np.array_equal(fused.result().truth.packed, general.result().truth.packed)
 
 
@@ -429,7 +434,7 @@ def _step_both(fused, general, periods):
     """Step both co-simulations; each period's samples, truth and estimates the same."""
     for _ in range(periods):
         samples, truth, outputs = fused.step()
-        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        want_samples, want_truth, want_outputs = general.step()
         _assert_same_samples(samples, want_samples)
         assert np.array_equal(truth.packed, want_truth.packed)
         for key, out in outputs.items():
@@ -438,26 +443,29 @@ def _step_both(fused, general, periods):
 
 @pytest.mark.parametrize("change", ["reset", "set_state", "gains", "pattern", "estimator_reset", "imu_state"])
 def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
-    """The period kernel's arguments, gathered once for an environment's periods
-    (``_PeriodPlan``), hold the sensor's and the estimators' arrays: a reset, a restored
-    state, a parameter change or an estimator's reset between periods replaces them (or, for
-    BISO's gains, writes them in place), and the periods after are still those of the
-    general path, bit for bit."""
+    """The period call's arrays, gathered once for an environment's periods, are the
+    sensor's and the estimators' own: a reset, a restored state, a parameter change or an
+    estimator's reset between periods replaces them (their owners' ``arrays_version``
+    counts up; BISO's change of equal gains writes them in place), and the periods after
+    are still those of the general path, bit for bit."""
     options = dict(duration_s=3.0, seed=4, estimators=("biso", "biso_plus", "poisson"))
-    fused = CoSimulation("figure8", keep_log=False, **options)
-    fused._sensor_buffers = {}
+    fused = CoSimulation("figure8", keep_log=False, reuse_outputs=True, **options)
     general = CoSimulation("figure8", **options)
+    general.fast_path = False
     _step_both(fused, general, 5)
     saved = [sim.get_state() for sim in (fused, general)]
     _step_both(fused, general, 5)
-    assert fused._plan is not None and fused._plan.after(fused._last_truth_row) is not None
-    plan = fused._plan
+
+    def versions():
+        return (fused.imu.arrays_version, *(est.arrays_version for est in fused.estimators.values()))
+
+    before = versions()
     for sim, state in zip((fused, general), saved):
         if change == "reset":
             sim.reset()
         elif change == "set_state":
             sim.set_state(state)
-        elif change == "gains":  # (in place: the plan holds)
+        elif change == "gains":  # (in place)
             sim.estimators["biso"].set_params(cutoff_hz=1.5)
         elif change == "pattern":
             sim.estimators["biso"].set_params(pattern=13)
@@ -465,10 +473,8 @@ def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
             sim.estimators["poisson"].reset(q0=(1.0, 0.0, 0.0, 0.0))
         else:  # the same state in new arrays
             sim.imu.set_state(sim.imu.get_state())
-    holds = fused._plan.after(fused._last_truth_row) is not None
-    assert holds == (change == "gains")
+    assert (versions() == before) == (change == "gains")
     _step_both(fused, general, 5)
-    assert fused._plan is not None and (fused._plan is plan) == (change == "gains")
 
 
 @pytest.mark.parametrize("case", ["warning", "long_period"])
@@ -481,16 +487,14 @@ def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, cas
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     rate = 4.0 if case == "long_period" else 50.0
     fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate,
-                         keep_log=not reuse)
-    if reuse:
-        fused._sensor_buffers = {}
+                         keep_log=not reuse, reuse_outputs=reuse)
     general = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
+    general.fast_path = False
     for period in range(6):
         if case == "warning" and period == 3:
-            assert (fused._plan is not None) == reuse
             fused.vehicle.data.qvel[0] = general.vehicle.data.qvel[0] = 1e11
         samples, truth, outputs = fused.step()
-        want_samples, want_truth, want_outputs = general._sense(general._drive())
+        want_samples, want_truth, want_outputs = general.step()
         _assert_same_samples(samples, want_samples)
         assert np.array_equal(truth.packed, want_truth.packed)
         assert np.array_equal(outputs["biso_plus"].q_wb, want_outputs["biso_plus"].q_wb)

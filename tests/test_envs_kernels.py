@@ -175,18 +175,21 @@ def test_tune_closed_sets_the_gains_a_new_estimator_has(reading):
     tuned = make_estimator("biso", 200.0, cutoff_hz=0.1, reading=reading)
     scales = np.array([[0.0, 0.02], [math.nan, 50.0], [2.0, 0.98], [0.0, 1.0]])  # r linear in [0, 2], f_c log
     low, high, gains, values = -np.ones(2), np.ones(2), np.zeros(2), np.empty(4)
-    tune = (low, high, gains, scales, 1, 0, reading == "L", tuned._coef, values)
+    tune = (low, high, gains, scales, 1, 0, reading == "L", values)
     a = np.array([0.3, -0.4])
     assert _tune_closed(a, *tune) == 1
     ratio, cutoff = 0.0 + 0.5 * (0.3 + 1.0) * 2.0, 0.02 * 50.0 ** (0.5 * (-0.4 + 1.0))
     k, kp = gains_from_cutoff(cutoff, reading)
     assert values.tolist() == [ratio, cutoff, k, kp * ratio] and gains.tolist() == a.tolist()
+    version = tuned.arrays_version
+    tuned.retune(k=values[2], k_p=values[3], cutoff_hz=None)  # (the closed form's short path: in place)
+    assert tuned.arrays_version == version
     made = make_estimator("biso", 200.0, k=k, k_p=kp * ratio, reading=reading)
-    assert tuned._coef.tobytes() == made._coef.tobytes()
+    assert tuned.coefficients.tobytes() == made.coefficients.tobytes()
     assert _tune_closed(a.copy(), *tune) == 0
     for outside in ([1.2, 0.0], [0.0, math.nan]):
         assert _tune_closed(np.array(outside), *tune) == -1
-        assert tuned._coef.tobytes() == made._coef.tobytes() and gains.tolist() == a.tolist()
+        assert tuned.coefficients.tobytes() == made.coefficients.tobytes() and gains.tolist() == a.tolist()
 
 
 @pytest.mark.parametrize("use_truth", [False, True])

@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, Callable, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -286,6 +286,18 @@ def as_quaternion(name: str, value: Any) -> np.ndarray:
     return q / n
 
 
+class LoopArrays(NamedTuple):
+    """An estimator's arrays in the period call (``Estimator.loop_arrays``): coefficients,
+    state, and the outputs q_wb (bound, 4), flags (bound,) int64, gyro_bias_b (bound, 3) or
+    (0, 3) when it estimates no bias."""
+
+    coef: np.ndarray
+    state: np.ndarray
+    q_wb: np.ndarray
+    flags: np.ndarray
+    gyro_bias_b: np.ndarray
+
+
 # --------------------------------------------------------------------------------------
 # The streaming wrapper
 # --------------------------------------------------------------------------------------
@@ -306,6 +318,12 @@ class Estimator:
     state_layout: ClassVar[tuple[tuple[str, int], ...]]
     inputs: ClassVar[tuple[str, ...]] = ()
     estimates_bias: ClassVar[bool] = False
+    loop_kernel: ClassVar[Callable | None] = None
+    """The estimator's kernel in the co-simulation's period call (``biso_cosim.loop``): a
+    jitted ``kernel(arrays, samples)`` on ``LoopSamples`` (k rows: gyro_b, accel_b, mag_b,
+    imu_flags, speed_mps, ...) that advances ``arrays`` (``loop_arrays``) and writes the
+    first k rows of its outputs, with the same arithmetic as ``update`` on those inputs.
+    None: the estimator runs by ``update`` after the period's call."""
 
     def __init__(self, fs_hz: float, params: Any = None, *, method: str | None = None):
         self.method = method or type(self).method
@@ -318,6 +336,8 @@ class Estimator:
         self._q0: np.ndarray | None = None
         self._state = self._initial_state(None)
         self._prechecked = None  # (parameter record, input requirements) checked: see _update_prechecked
+        self.arrays_version = 0
+        """Counts the replacements of the coefficient and state arrays (``loop_arrays``)."""
 
     # -- parameters -------------------------------------------------------------------
 
@@ -340,6 +360,24 @@ class Estimator:
         params = self._replace_params(**changes)
         coef = self._coefficients(params, self.fs_hz)
         self._params, self._coef = params, coef
+        self.arrays_version += 1
+
+    def retune(self, **changes: Any) -> None:
+        """Change parameters while the estimator runs (a tuning loop's change, each step):
+        ``set_params``' result, the parameter record, the coefficients and the checks
+        consistent, the state untouched. An estimator with a cheaper way for some changes
+        takes it here (BISO: equal gains of the closed form, in place). The new
+        coefficients are written into the coefficient array in place when they have its
+        shape (a loop that holds the array goes on with it); otherwise the array is
+        replaced and ``arrays_version`` counts up."""
+        params = self._replace_params(**changes)
+        coef = self._coefficients(params, self.fs_hz)
+        if coef.shape == self._coef.shape and coef.dtype == self._coef.dtype:
+            self._coef[...] = coef
+            self._params = params
+        else:
+            self._params, self._coef = params, coef
+            self.arrays_version += 1
 
     def _replace_params(self, **changes: Any) -> Any:
         names = {f.name for f in dataclasses.fields(self.Params)}
@@ -356,6 +394,7 @@ class Estimator:
         the attitude from the accelerometer and magnetometer (eq. (7))."""
         q = None if q0 is None else as_quaternion("q0", q0)
         self._state = self._initial_state(q)
+        self.arrays_version += 1
 
     def get_state(self) -> State:
         """A copy of the whole state (restore it with ``set_state``)."""
@@ -371,6 +410,7 @@ class Estimator:
         if values.shape != self._state.shape:
             raise ValueError(f"state.values must have shape {self._state.shape}, got {values.shape}")
         self._state = values.copy()
+        self.arrays_version += 1
 
     @property
     def initialized(self) -> bool:
@@ -424,6 +464,25 @@ class Estimator:
         bias = np.empty((k, 3)) if self.estimates_bias else _NO_BIAS
         self._run(self._coef, self._state, gyro_b, accel_b, mag_b, extra, q_out, flags, bias)
         return Estimate(q_out, flags, bias if self.estimates_bias else None)
+
+    # -- in the co-simulation's period call (biso_cosim.loop) ---------------------------
+
+    def loop_arrays(self, bound: int) -> Any:
+        """The named tuple of arrays ``loop_kernel`` runs on, with outputs for up to ``bound``
+        samples, or None when the estimator cannot run in the period call as it is set now
+        (no ``loop_kernel``, or a parameter that needs an input the loop does not give):
+        ``LoopArrays(coef, state, q_wb, flags, gyro_bias_b)`` here, the coefficient and
+        state arrays themselves (advanced in place; ``arrays_version`` counts their
+        replacements)."""
+        if type(self).loop_kernel is None:
+            return None
+        bias = np.empty((bound, 3)) if self.estimates_bias else _NO_BIAS
+        return LoopArrays(self._coef, self._state, np.empty((bound, 4)), np.empty(bound, dtype=np.int64), bias)
+
+    def loop_estimate(self, arrays: Any, k: int) -> Estimate:
+        """The estimate of the first k samples in ``arrays``' outputs (views)."""
+        bias = getattr(arrays, "gyro_bias_b", None)
+        return Estimate(arrays.q_wb[:k], arrays.flags[:k], bias[:k] if self.estimates_bias else None)
 
     def _input_requirements(self) -> Any:
         """What of the parameters decides which optional inputs ``update`` accepts and in

@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -413,7 +413,7 @@ _PATTERN_12 = _PATTERNS[12]  # the closed-form correction's pattern (``_set_gain
 def _set_gains_in_place(coef: np.ndarray, params: BisoParams, k: float, kp: float) -> None:
     """Closed-mode coefficients ``coef`` with the equal gains k, k_p of ``params`` (the
     entries ``biso_coefficients`` derives from the gains, by its expressions), in place:
-    the arrays a co-simulation's period kernel reads stay the same (``cosim._PeriodPlan``)."""
+    the arrays a co-simulation's period call reads stay the same (``biso_cosim.loop``)."""
     _write_equal_gains(coef, k, kp, params.reading == "L")
 
 
@@ -709,6 +709,29 @@ def rates_from_increments(step, dtheta_b: np.ndarray, gyro_b: np.ndarray, h: flo
     return out
 
 
+class BisoLoopArrays(NamedTuple):
+    """BISO's arrays in the co-simulation's period call (``BisoEstimator.loop_arrays``)."""
+
+    coef: np.ndarray
+    state: np.ndarray
+    scratch: np.ndarray  # (_BLOCK, _BUF_COLS), ``_biso_batch``'s
+    velocity_enu_mps: np.ndarray  # (0, 3): the loop gives no velocity
+    q_wb: np.ndarray
+    flags: np.ndarray
+
+
+@jit
+def _biso_loop(arrays, samples):
+    """BISO on a period's samples (``biso_cosim.loop``): ``update`` with the sensor's flags
+    as ``imu_flags``, without velocity, ``gyro_step="hold"``."""
+    k = samples.gyro_b.shape[0]
+    _biso_batch(arrays.coef, arrays.state, samples.gyro_b, samples.accel_b, samples.mag_b, samples.imu_flags,
+                arrays.velocity_enu_mps, arrays.q_wb[:k], arrays.flags[:k], arrays.scratch)
+
+
+_NO_VELOCITY = np.empty((0, 3))
+
+
 class BisoEstimator(Estimator):
     """The faithful BISO estimator (see the module docstring). Build it with
     ``make_estimator("biso", fs_hz, **params)``; ``"positional"`` (k_p = 0) and
@@ -728,12 +751,23 @@ class BisoEstimator(Estimator):
         return biso_coefficients(params, fs_hz)
 
     def set_params(self, **changes: Any) -> None:
-        """Change parameters without touching the state (see ``Estimator.set_params``).
+        """Change parameters without touching the state (see ``Estimator.set_params``);
+        equal gains of the closed form change in place (``_equal_gains``)."""
+        if not self._equal_gains(changes):
+            super().set_params(**changes)
 
-        A tuning loop's change, equal scalar gains (``k``, ``k_p`` or ``cutoff_hz``) of the
-        closed-form correction (pattern 12, k > 0) to other such gains, takes a short path:
+    def retune(self, **changes: Any) -> None:
+        """Change parameters while the estimator runs (see ``Estimator.retune``); equal
+        gains of the closed form change in place (``_equal_gains``)."""
+        if not self._equal_gains(changes):
+            super().retune(**changes)
+
+    def _equal_gains(self, changes: dict[str, Any]) -> bool:
+        """The short path of a tuning loop's change, equal scalar gains (``k``, ``k_p`` or
+        ``cutoff_hz``) of the closed-form correction (pattern 12, k > 0) to other such gains:
         only the coefficients that depend on the gains are derived again, in place, by the
-        same expressions as ``biso_coefficients`` (the same numbers; tested)."""
+        same expressions as ``biso_coefficients`` (the same numbers; tested), and the arrays
+        stay the same (``arrays_version`` unchanged). Returns whether it applied."""
         if changes.keys() <= _GAIN_NAMES and self._coef[_C_MODE] == MODE_CLOSED:
             params = object.__new__(BisoParams)  # a frozen record: the copy's fields are set in its __dict__
             params.__dict__.update(self._params.__dict__, **changes)
@@ -742,27 +776,24 @@ class BisoEstimator(Estimator):
                     and 0.0 <= kp < math.inf):  # two valid scalars, checked in one expression
                 self._params = params
                 _set_gains_in_place(self._coef, params, k, kp)
-                return
+                return True
             k, kp = _resolved_gains(params)  # validates them (the messages of the full path)
             if k[0] > 0.0 and len(set(k)) == 1 and len(set(kp)) == 1:
                 self._params = params
                 _set_gains_in_place(self._coef, params, k[0], kp[0])
-                return
-        super().set_params(**changes)
+                return True
+        return False
 
     def _is_closed_form(self) -> bool:
-        """Whether the correction is the closed form (pattern 12, k > 0): the gains then
-        change in place (``set_params``' short path, ``_record_equal_gains``)."""
+        """Whether the correction is the closed form (pattern 12, k > 0): equal gains then
+        change in place (``retune``)."""
         return bool(self._coef[_C_MODE] == MODE_CLOSED)
 
-    def _record_equal_gains(self, k: float, kp: float) -> None:
-        """The parameter record of ``set_params(k=k, k_p=kp, cutoff_hz=None)`` by its short
-        path, for a caller that has made its checks (``_is_closed_form()``, floats 0 < k < ∞,
-        0 ≤ kp < ∞) and written the gains into ``_coef`` itself (``_write_equal_gains``
-        with this reading): a tuning loop's change every step, GainTuning-v0's."""
-        params = object.__new__(BisoParams)
-        params.__dict__.update(self._params.__dict__, k=k, k_p=kp, cutoff_hz=None)
-        self._params = params
+    @property
+    def closed_form(self) -> bool:
+        """Whether the correction is the closed form (pattern 12, k > 0), whose equal gains
+        ``retune`` changes in place."""
+        return self._is_closed_form()
 
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)
@@ -785,6 +816,18 @@ class BisoEstimator(Estimator):
 
     def _input_requirements(self) -> tuple:
         return self._params.gyro_step, self._params.latitude_rad is None
+
+    loop_kernel = _biso_loop
+
+    def loop_arrays(self, bound: int) -> BisoLoopArrays | None:
+        """BISO's arrays in the period call (see ``Estimator.loop_arrays``); None when its
+        ``gyro_step`` integrates increments (the loop gives the readings only)."""
+        if self._params.gyro_step != "hold":
+            return None
+        if not hasattr(self, "_scratch"):
+            self._scratch = np.empty((_BLOCK, _BUF_COLS))
+        return BisoLoopArrays(self._coef, self._state, self._scratch, _NO_VELOCITY, np.empty((bound, 4)),
+                              np.empty(bound, dtype=np.int64))
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
         step = gyro_step_algorithm(self._params)

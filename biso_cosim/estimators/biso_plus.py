@@ -929,6 +929,15 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     st[_S_BW_OK], st[_S_MDIST] = bw_ok, mdist
 
 
+@jit
+def _biso_plus_loop(arrays, samples):
+    """biso_plus on a period's samples (``biso_cosim.loop``): ``update`` with the wheel
+    odometry as ``speed_mps`` and the sensor's flags as ``imu_flags``."""
+    k = samples.gyro_b.shape[0]
+    _biso_plus_batch(arrays.coef, arrays.state, samples.gyro_b, samples.accel_b, samples.mag_b, samples.speed_mps,
+                     samples.imu_flags, arrays.q_wb[:k], arrays.flags[:k], arrays.gyro_bias_b[:k])
+
+
 class BisoPlusEstimator(Estimator):
     """biso_plus (see the module docstring). Optional per-sample input: ``speed_mps`` (k,),
     the vehicle's forward speed at ``speed_point_b_m`` (wheel odometry or GNSS); NaN = unknown."""
@@ -938,6 +947,7 @@ class BisoPlusEstimator(Estimator):
     state_layout = STATE_LAYOUT
     inputs = ("speed_mps", "imu_flags")
     estimates_bias = True
+    loop_kernel = _biso_plus_loop
 
     def _coefficients(self, params: BisoPlusParams, fs_hz: float) -> np.ndarray:
         return biso_plus_coefficients(params, fs_hz)

@@ -190,6 +190,15 @@ def _dcm_batch(c, st, gyro, accel, mag, imu_flags, q_out, flags_out, bias_out):
     st[_S_GYRO], st[_S_GYRO + 1], st[_S_GYRO + 2] = hx, hy, hz
 
 
+@jit
+def _dcm_loop(arrays, samples):
+    """DCM-PI on a period's samples (``biso_cosim.loop``): ``update`` with the sensor's flags
+    as ``imu_flags``."""
+    k = samples.gyro_b.shape[0]
+    _dcm_batch(arrays.coef, arrays.state, samples.gyro_b, samples.accel_b, samples.mag_b, samples.imu_flags,
+               arrays.q_wb[:k], arrays.flags[:k], arrays.gyro_bias_b[:k])
+
+
 class DcmPiEstimator(Estimator):
     """DCM with PI drift correction (Premerlani & Bizard 2009); see the module docstring."""
 
@@ -198,6 +207,7 @@ class DcmPiEstimator(Estimator):
     state_layout = STATE_LAYOUT
     estimates_bias = True
     inputs = ("imu_flags",)
+    loop_kernel = _dcm_loop
 
     def _coefficients(self, params: DcmPiParams, fs_hz: float) -> np.ndarray:
         return dcm_pi_coefficients(params, fs_hz)

@@ -241,6 +241,18 @@ class MPU9250:
         self._cs = np.zeros(1, dtype=K.CHIP_STATE)
         self._cs[0]["rng"] = self._rng_words
         self._chs = np.zeros(2, dtype=K.CHANNEL_STATE)
+        self._arrays_changed()
+
+    def _arrays_changed(self) -> None:
+        self.arrays_version = getattr(self, "arrays_version", 0) + 1
+
+    def loop_arrays(self) -> tuple:
+        """The arrays the co-simulation's period kernel (``biso_cosim.loop``) runs the chip
+        on: parameters, channel parameters, chip state, channel state (the chip's own arrays,
+        advanced in place), and the default die temperature. They are replaced, and
+        ``arrays_version`` counts up, when the registers, the seed or a restored state
+        change them."""
+        return self._cp, self._ch, self._cs, self._chs, self._temp_default
 
     # ---- public ------------------------------------------------------------------------
 
@@ -296,6 +308,7 @@ class MPU9250:
             raise ValueError("state does not come from MPU9250.get_state()")
         self._cs = chip.copy()
         self._chs = channels.copy()
+        self._arrays_changed()
 
     def simulate(
         self,
