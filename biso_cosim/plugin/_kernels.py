@@ -9,13 +9,17 @@ the wrapper (``imu_plugin.py``) turns it into the ValueError. The frames' scalar
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from biso_cosim._numba import jit
 from biso_cosim.frames import _qmul, _qrot, _qrot_inv
 
-__all__ = ["prepare", "truth_at_samples", "BAD_INPUTS", "QUAT_NORM_TOL", "TIME_TOL"]
+__all__ = ["HostMap", "HostRows", "ChipRows", "prepare", "finish_ticks", "truth_at_samples", "BAD_INPUTS",
+           "QUAT_NORM_TOL", "TIME_TOL", "CLOCK_T0", "CLOCK_TICKS", "CLOCK_HAS_LAST", "CLOCK_SIZE", "LAST_SIZE"]
 
 QUAT_NORM_TOL = 1e-5
 """A given attitude quaternion must have |q| within 1 ± this (float32 hosts give ~1e-7)."""
@@ -48,7 +52,7 @@ def _body_to_flu(frd, x, y, z):
 
 @jit
 def _finite3(a, i):
-    return math.isfinite(a[i, 0]) and math.isfinite(a[i, 1]) and math.isfinite(a[i, 2])
+    return math.isfinite(_get(a, i, 0)) and math.isfinite(_get(a, i, 1)) and math.isfinite(_get(a, i, 2))
 
 
 @jit
@@ -56,28 +60,134 @@ def _cross(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@jit
-def prepare(codes, r_b, g_enu, tick_s, t0_s, tick0, prev_omega, t, q, omega, force, accel, alpha, p, v, temp,
-            q_out, omega_out, force_out, p_out, v_out):
-    """Check the host's truth rows and write them in the package's frames, at the chip.
+class HostMap(NamedTuple):
+    """The plug-in's constant map from the host's truth to the chip's inputs: the host's
+    conventions (``ned``, ``frd``, ``scalar_last``: ``HostFrames``), the chip's position
+    ``r_b_m`` (3,) FLU from the reference point and whether it is away from it (``lever``),
+    gravity ``g_enu`` (3,) m/s², the tick period ``tick_s`` and its rate ``tick_rate_hz``."""
 
-    ``codes`` = (ned, frd, scalar_last, accel_mode, lever, have_prev). Row i is tick
-    ``tick0 + i``, due at ``t0_s + (tick0 + i)·tick_s``. ``force`` (specific force, host body)
-    or, with accel_mode, ``accel`` (the reference point's acceleration, host world) with
-    gravity ``g_enu``: f_b = q* ∘ (a − g) ∘ q. ``alpha`` (n, 3) or empty: angular
-    acceleration (host body); empty: the slope (ω_i − ω_{i−1})/tick_s of the linear
-    interpolation the chip applies between ticks (0 at the very first tick). With lever, the
-    chip at r_b (FLU, from the reference point) feels f + ω × (ω × r) + ω̇ × r and sits at
-    p + q ∘ r ∘ q*. ``p``/``v`` (n, 3) or empty (zero); ``temp`` (n,) or empty.
+    ned: bool
+    frd: bool
+    scalar_last: bool
+    lever: bool
+    r_b_m: np.ndarray
+    g_enu: np.ndarray
+    tick_s: float
+    tick_rate_hz: float
+
+
+class HostRows(NamedTuple):
+    """One call's truth in the host's conventions (``ImuPlugin.step``'s arguments): ``t_s``
+    a number (one tick) or (n,); the others (w,) for one tick or (n, w), and empty ((0,) or
+    (0, w)) when not given; ``specific_force_b`` or, when it is empty, ``accel_w``;
+    ``temperature_c`` (n,) or empty: then ``temperature_default_c`` for every row."""
+
+    t_s: Any
+    q_wb: np.ndarray
+    omega_b: np.ndarray
+    specific_force_b: np.ndarray
+    accel_w: np.ndarray
+    alpha_b: np.ndarray
+    p_w: np.ndarray
+    v_w: np.ndarray
+    temperature_c: np.ndarray
+    temperature_default_c: float
+
+
+class ChipRows(NamedTuple):
+    """The rows of ``HostRows`` in the package's frames, at the chip (``prepare``'s output):
+    attitude (n, 4), body rate (n, 3), specific force at the chip (n, 3), the chip's position
+    (n, 3) and the reference point's velocity (n, 3)."""
+
+    q_wb: np.ndarray
+    omega_b: np.ndarray
+    specific_force_b: np.ndarray
+    p_w: np.ndarray
+    v_w: np.ndarray
+
+
+# the plug-in's clock (``ImuPlugin``, float64): t₀ (the first tick's host time), ticks taken,
+# whether ``last`` holds the previous tick; ``last`` (10,): its q_wb, ω_b and v_w, package frames
+CLOCK_T0, CLOCK_TICKS, CLOCK_HAS_LAST = 0, 1, 2
+CLOCK_SIZE = 3
+LAST_SIZE = 10
+
+
+def _count(t):
+    """The number of rows of ``t_s`` (a number: 1)."""
+
+
+@overload(_count, jit_options={"cache": True})
+def _count_impl(t):
+    if isinstance(t, types.Number):
+        return lambda t: 1
+    return lambda t: t.shape[0]
+
+
+def _at(t, i):
+    """Row i of ``t_s`` (a number: itself)."""
+
+
+@overload(_at, jit_options={"cache": True})
+def _at_impl(t, i):
+    if isinstance(t, types.Number):
+        return lambda t, i: float(t)
+    return lambda t, i: t[i]
+
+
+def _nrows(a, width):
+    """The rows of ``a``: (n, w) n; (w,) one; empty none."""
+
+
+@overload(_nrows, jit_options={"cache": True})
+def _nrows_impl(a, width):
+    if a.ndim == 1:
+        return lambda a, width: a.shape[0] // width
+    return lambda a, width: a.shape[0]
+
+
+def _get(a, i, j):
+    """Column j of row i of ``a`` ((n, w), or (w,): one row)."""
+
+
+@overload(_get, jit_options={"cache": True})
+def _get_impl(a, i, j):
+    if a.ndim == 1:
+        return lambda a, i, j: a[j]
+    return lambda a, i, j: a[i, j]
+
+
+@jit
+def prepare(host, clock, last, given, out):
+    """Check the host's truth rows ``given`` (``HostRows``) and write them in the package's
+    frames, at the chip, into ``out`` (``ChipRows``).
+
+    Row i is tick ``ticks + i``, due at ``t₀ + (ticks + i)·tick_s`` (``clock``; the first
+    tick fixes t₀). ``specific_force_b`` (host body) or, when it is empty, ``accel_w`` (the
+    reference point's acceleration, host world) with gravity ``g_enu``: f_b = q* ∘ (a − g) ∘ q.
+    ``alpha_b`` (n, 3) or empty: angular acceleration (host body); empty: the slope
+    (ω_i − ω_{i−1})/tick_s of the linear interpolation the chip applies between ticks (0 at
+    the very first tick; ω_{−1} is ``last``'s). With ``lever``, the chip at r_b feels
+    f + ω × (ω × r) + ω̇ × r and sits at p + q ∘ r ∘ q*. ``p_w``/``v_w`` or empty (zero).
 
     Returns (0, 0) or (code, row) of the first bad value (``BAD_INPUTS``); nothing but the
     output arrays is written.
     """
-    ned, frd, last, accel_mode, lever, have_prev = codes[0], codes[1], codes[2], codes[3], codes[4], codes[5]
-    n = t.shape[0]
-    pwx, pwy, pwz = prev_omega[0], prev_omega[1], prev_omega[2]
+    ned, frd, scalar_last, lever, r_b, g_enu, tick_s = (host.ned, host.frd, host.scalar_last, host.lever, host.r_b_m,
+                                                        host.g_enu, host.tick_s)
+    t = given.t_s
+    n = _count(t)
+    q, omega, force, accel, alpha = given.q_wb, given.omega_b, given.specific_force_b, given.accel_w, given.alpha_b
+    p, v, temp = given.p_w, given.v_w, given.temperature_c
+    accel_mode = _nrows(force, 3) == 0
+    have_alpha, have_p, have_v = _nrows(alpha, 3) > 0, _nrows(p, 3) > 0, _nrows(v, 3) > 0
+    have_prev = clock[CLOCK_HAS_LAST] != 0.0
+    tick0 = clock[CLOCK_TICKS]
+    t0_s = clock[CLOCK_T0] if have_prev else _at(t, 0)
+    q_out, omega_out, force_out, p_out, v_out = out.q_wb, out.omega_b, out.specific_force_b, out.p_w, out.v_w
+    pwx, pwy, pwz = last[4], last[5], last[6]
     for i in range(n):
-        ti = t[i]
+        ti = _at(t, i)
         if not math.isfinite(ti):
             return 1, i
         due = t0_s + (tick0 + i) * tick_s
@@ -85,10 +195,10 @@ def prepare(codes, r_b, g_enu, tick_s, t0_s, tick0, prev_omega, t, q, omega, for
             return 2, i
         if ti > due + TIME_TOL * tick_s:
             return 3, i
-        if last:
-            w, x, y, z = q[i, 3], q[i, 0], q[i, 1], q[i, 2]
+        if scalar_last:
+            w, x, y, z = _get(q, i, 3), _get(q, i, 0), _get(q, i, 1), _get(q, i, 2)
         else:
-            w, x, y, z = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+            w, x, y, z = _get(q, i, 0), _get(q, i, 1), _get(q, i, 2), _get(q, i, 3)
         if not (math.isfinite(w) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return 4, i
         norm = math.sqrt(w * w + x * x + y * y + z * z)
@@ -103,36 +213,36 @@ def prepare(codes, r_b, g_enu, tick_s, t0_s, tick0, prev_omega, t, q, omega, for
         q_out[i, 0], q_out[i, 1], q_out[i, 2], q_out[i, 3] = w, x, y, z
         if not _finite3(omega, i):
             return 6, i
-        wx, wy, wz = _body_to_flu(frd, omega[i, 0], omega[i, 1], omega[i, 2])
+        wx, wy, wz = _body_to_flu(frd, _get(omega, i, 0), _get(omega, i, 1), _get(omega, i, 2))
         omega_out[i, 0], omega_out[i, 1], omega_out[i, 2] = wx, wy, wz
         if accel_mode:
             if not _finite3(accel, i):
                 return 8, i
-            ax, ay, az = _world_to_enu(ned, accel[i, 0], accel[i, 1], accel[i, 2])
+            ax, ay, az = _world_to_enu(ned, _get(accel, i, 0), _get(accel, i, 1), _get(accel, i, 2))
             fx, fy, fz = _qrot_inv(w, x, y, z, ax - g_enu[0], ay - g_enu[1], az - g_enu[2])
         else:
             if not _finite3(force, i):
                 return 7, i
-            fx, fy, fz = _body_to_flu(frd, force[i, 0], force[i, 1], force[i, 2])
-        if alpha.shape[0] > 0:
+            fx, fy, fz = _body_to_flu(frd, _get(force, i, 0), _get(force, i, 1), _get(force, i, 2))
+        if have_alpha:
             if not _finite3(alpha, i):
                 return 9, i
-            alx, aly, alz = _body_to_flu(frd, alpha[i, 0], alpha[i, 1], alpha[i, 2])
+            alx, aly, alz = _body_to_flu(frd, _get(alpha, i, 0), _get(alpha, i, 1), _get(alpha, i, 2))
         elif have_prev or i > 0:
             alx, aly, alz = (wx - pwx) / tick_s, (wy - pwy) / tick_s, (wz - pwz) / tick_s
         else:
             alx = aly = alz = 0.0
         pwx, pwy, pwz = wx, wy, wz
-        if p.shape[0] > 0:
+        if have_p:
             if not _finite3(p, i):
                 return 10, i
-            px, py, pz = _world_to_enu(ned, p[i, 0], p[i, 1], p[i, 2])
+            px, py, pz = _world_to_enu(ned, _get(p, i, 0), _get(p, i, 1), _get(p, i, 2))
         else:
             px = py = pz = 0.0
-        if v.shape[0] > 0:
+        if have_v:
             if not _finite3(v, i):
                 return 11, i
-            v_out[i, 0], v_out[i, 1], v_out[i, 2] = _world_to_enu(ned, v[i, 0], v[i, 1], v[i, 2])
+            v_out[i, 0], v_out[i, 1], v_out[i, 2] = _world_to_enu(ned, _get(v, i, 0), _get(v, i, 1), _get(v, i, 2))
         else:
             v_out[i, 0] = v_out[i, 1] = v_out[i, 2] = 0.0
         if temp.shape[0] > 0 and not math.isfinite(temp[i]):
@@ -148,6 +258,42 @@ def prepare(codes, r_b, g_enu, tick_s, t0_s, tick0, prev_omega, t, q, omega, for
         force_out[i, 0], force_out[i, 1], force_out[i, 2] = fx, fy, fz
         p_out[i, 0], p_out[i, 1], p_out[i, 2] = px, py, pz
     return 0, 0
+
+
+@jit
+def finish_ticks(host, clock, last, given, chip, n, t_samples, q_true, speed, q_rows, v_rows):
+    """After a checked call of n ticks (``prepare``'s ``chip`` rows) whose samples the chip
+    latched at ``t_samples`` (its own axis): the truth at them (``truth_at_samples``, into
+    ``q_true`` and ``speed`` (k, 4), (k,); ``q_rows``, ``v_rows`` (n + 1 or more, 4 and 3)
+    scratch), then the clock advanced by the call's ticks and ``last`` set to its last tick. The first call fixes t₀ (``given``'s first time) and takes the
+    tick before it as the first (the chip starts settled)."""
+    if clock[CLOCK_HAS_LAST] == 0.0:
+        clock[CLOCK_T0] = _at(given.t_s, 0)
+        for c in range(4):
+            last[c] = chip.q_wb[0, c]
+        for c in range(3):
+            last[4 + c] = chip.omega_b[0, c]
+            last[7 + c] = chip.v_w[0, c]
+    k = t_samples.shape[0]
+    if k:  # the rows around the samples: the previous tick's, then this call's
+        for c in range(4):
+            q_rows[0, c] = last[c]
+        for c in range(3):
+            v_rows[0, c] = last[7 + c]
+        for i in range(n):
+            for c in range(4):
+                q_rows[i + 1, c] = chip.q_wb[i, c]
+            for c in range(3):
+                v_rows[i + 1, c] = chip.v_w[i, c]
+        truth_at_samples(t_samples, host.tick_s, host.tick_rate_hz, int(clock[CLOCK_TICKS]), q_rows[:n + 1],
+                         v_rows[:n + 1], q_true, speed)
+    for c in range(4):
+        last[c] = chip.q_wb[n - 1, c]
+    for c in range(3):
+        last[4 + c] = chip.omega_b[n - 1, c]
+        last[7 + c] = chip.v_w[n - 1, c]
+    clock[CLOCK_TICKS] += n
+    clock[CLOCK_HAS_LAST] = 1.0
 
 
 @jit

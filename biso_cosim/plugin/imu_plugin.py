@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
-from biso_cosim.estimators import Estimator, State, describe_estimator, estimator_inputs, make_estimator
+from biso_cosim.estimators import Estimate, Estimator, State, describe_estimator, estimator_inputs, make_estimator
+from biso_cosim.loop import SampleOutputs, SensorArrays
 from biso_cosim.plugin import _kernels as K
+from biso_cosim.plugin._tick import (TICK_OK, TICK_SENSOR, TickPlan, TickScratch, TruthAtSamples, compile_plan,
+                                     tick_kernel)
 from biso_cosim.plugin.adapter import HostFrames
 from biso_cosim.plugin.output import EstimateOutput, PluginOutput, empty_estimate
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment, RawSamples
@@ -19,7 +22,7 @@ __all__ = ["ImuPlugin", "Mounting", "PluginState"]
 
 _TAKEN_INPUTS = frozenset({"imu_flags", "speed_mps"})  # optional estimator inputs the plug-in can give
 _NO_ROWS3 = np.empty((0, 3))
-_NO_ROWS = np.empty(0)
+_NO_ROWS = np.empty(0)  # (also an absent vector of one tick)
 
 
 @dataclass(frozen=True)
@@ -164,9 +167,14 @@ class ImuPlugin:
         self._feeds: dict[str, tuple[bool, bool]] = {}  # label → (imu_flags, speed_mps)
         for label, name, params in _estimator_list(estimators):
             self.estimators[label] = self._make_estimator(label, name, params)
-        self._codes = np.zeros(6, dtype=np.int64)
-        self._codes[:3] = self.frames.codes
-        self._codes[4] = int(bool(np.any(self.position_b_m)))
+        ned, frd, scalar_last = (bool(c) for c in self.frames.codes)
+        self._host = K.HostMap(ned, frd, scalar_last, bool(np.any(self.position_b_m)), self.position_b_m,
+                               self.gravity_enu, self.tick_s, float(self.sensor.input_rate_hz))
+        self._clock = np.zeros(K.CLOCK_SIZE)  # t₀, ticks, whether _last_tick holds the previous tick
+        self._last_tick = np.zeros(K.LAST_SIZE)  # the previous tick's q_wb, ω_b, v_w (package frames)
+        self._gives_speed = any(speed for _, speed in self._feeds.values())
+        self._temp_default_c = float(self.sensor.loop_arrays()[4])  # the profile's die temperature
+        self._plan: _Plan | None = None
         # what a tick that latches no sample returns (most ticks: the ODR is below the tick
         # rate); its arrays are empty, so one object serves every such call
         none = _empty_samples()
@@ -210,12 +218,27 @@ class ImuPlugin:
     @property
     def ticks(self) -> int:
         """Ticks taken since the start (or the last ``reset``)."""
-        return self._ticks
+        return int(self._clock[K.CLOCK_TICKS])
 
     @property
     def next_tick_s(self) -> float | None:
         """The host time the next tick must have (None before the first tick: any time)."""
-        return None if self._t0 is None else self._t0 + self._ticks * self.tick_s
+        t0 = self._t0
+        return None if t0 is None else t0 + self.ticks * self.tick_s
+
+    @property
+    def _t0(self) -> float | None:
+        return float(self._clock[K.CLOCK_T0]) if self._clock[K.CLOCK_HAS_LAST] else None
+
+    @property
+    def in_loop_estimators(self) -> tuple[str, ...]:
+        """The estimators that run inside the plug-in's compiled call (each declares a
+        ``loop_kernel`` and gives ``loop_arrays``; ``biso_cosim.loop``); the others run by
+        ``update`` after it. None run inside it with local magnetic disturbances (the call
+        takes the Earth's field alone): the whole call then takes the general path."""
+        if self.environment.disturbances:
+            return ()
+        return tuple(label for label, est in self.estimators.items() if est.loop_arrays(0) is not None)
 
     # ---- state -----------------------------------------------------------------------------
 
@@ -225,14 +248,14 @@ class ImuPlugin:
         self.sensor.reset(seed)
         for est in self.estimators.values():
             est.reset()
-        self._ticks = 0
-        self._t0: float | None = None
-        self._last: np.ndarray | None = None
+        self._clock[:] = 0.0
+        self._last_tick[:] = 0.0
 
     def get_state(self) -> PluginState:
         """A copy of the whole dynamic state (sensor, estimators, clock, previous tick)."""
+        started = bool(self._clock[K.CLOCK_HAS_LAST])
         return PluginState(self.sensor.get_state(), {k: e.get_state() for k, e in self.estimators.items()},
-                           self._ticks, self._t0, None if self._last is None else self._last.copy())
+                           self.ticks, self._t0, self._last_tick.copy() if started else None)
 
     def set_state(self, state: PluginState) -> None:
         """Restore a state from ``get_state`` of this plug-in (or one built with the same
@@ -255,7 +278,10 @@ class ImuPlugin:
             for label, est in self.estimators.items():
                 est.set_state(saved.estimators[label])
             raise
-        self._ticks, self._t0, self._last = int(state.ticks), state.t0_s, last
+        self._clock[K.CLOCK_T0] = 0.0 if last is None else float(state.t0_s)
+        self._clock[K.CLOCK_TICKS] = int(state.ticks)
+        self._clock[K.CLOCK_HAS_LAST] = last is not None
+        self._last_tick[:] = 0.0 if last is None else last
 
     # ---- stepping --------------------------------------------------------------------------
 
@@ -281,57 +307,95 @@ class ImuPlugin:
         changes nothing.
         """
         single = isinstance(t_s, (float, int, np.floating, np.integer)) or np.ndim(t_s) == 0
-        t = np.array([t_s], dtype=np.float64) if single else _series("t_s", t_s)
-        n = t.shape[0]
+        if single:
+            t: Any = float(t_s)
+            n, absent = 1, _NO_ROWS
+        else:
+            t = _series("t_s", t_s)
+            n, absent = t.shape[0], _NO_ROWS3
         q = _rows("q_wb", q_wb, n, 4, single)
         omega = _rows("omega_b", omega_b, n, 3, single)
         if (specific_force_b is None) == (accel_w is None):
             raise ValueError("give either specific_force_b (body axes) or accel_w (world axes), not "
                              + ("both" if accel_w is not None else "neither"))
-        force = _rows("specific_force_b", specific_force_b, n, 3, single) if accel_w is None else _NO_ROWS3
-        accel = _NO_ROWS3 if accel_w is None else _rows("accel_w", accel_w, n, 3, single)
-        alpha = _NO_ROWS3 if alpha_b is None else _rows("alpha_b", alpha_b, n, 3, single)
-        p = _NO_ROWS3 if p_w is None else _rows("p_w", p_w, n, 3, single)
-        if self.speed_from_velocity and v_w is None and any(s for _, s in self._feeds.values()):
+        force = _rows("specific_force_b", specific_force_b, n, 3, single) if accel_w is None else absent
+        accel = absent if accel_w is None else _rows("accel_w", accel_w, n, 3, single)
+        alpha = absent if alpha_b is None else _rows("alpha_b", alpha_b, n, 3, single)
+        p = absent if p_w is None else _rows("p_w", p_w, n, 3, single)
+        if v_w is None and self._gives_speed:
             raise ValueError("v_w is required at every tick: the plug-in was built with speed_from_velocity=True")
-        v = _NO_ROWS3 if v_w is None else _rows("v_w", v_w, n, 3, single)
-        temp = _NO_ROWS if temperature_c is None or np.ndim(temperature_c) == 0 else \
-            _series("temperature_c", temperature_c, n)
-        if temperature_c is not None and np.ndim(temperature_c) == 0 and not math.isfinite(float(temperature_c)):
-            raise ValueError(f"temperature_c must be finite, got {temperature_c!r}")
-
-        codes = self._codes
-        codes[3] = accel_w is not None
-        codes[5] = self._last is not None
-        t0 = float(t[0]) if self._t0 is None else self._t0
-        prev_omega = self._last[4:7] if self._last is not None else _ZERO3
-        q_pkg, omega_pkg, f_chip, p_chip, v_pkg = (np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)),
-                                                  np.empty((n, 3)), np.empty((n, 3)))
-        code, row = K.prepare(codes, self.position_b_m, self.gravity_enu, self.tick_s, t0, self._ticks, prev_omega,
-                              t, q, omega, force, accel, alpha, p, v, temp, q_pkg, omega_pkg, f_chip, p_chip, v_pkg)
-        if code:
-            raise ValueError(self._bad_input(code, int(row), t, q, single))
-        mag_b = self.environment.field_b(q_pkg, p_chip, t)
-        temperature = temp if temp.shape[0] else (None if temperature_c is None else float(temperature_c))
-        samples = self.sensor.simulate(omega_pkg, f_chip, mag_b, temperature)
-
-        k = samples.t_s.shape[0]
-        first_tick = self._ticks
-        if self._last is None:  # the chip starts settled: the tick before the first is the first
-            self._last = np.concatenate((q_pkg[0], omega_pkg[0], v_pkg[0]))
-        if k:  # the rows around the samples: the previous tick's, then this call's
-            q_rows = np.concatenate((self._last[None, 0:4], q_pkg))
-            v_rows = np.concatenate((self._last[None, 7:10], v_pkg))
-        self._t0, self._ticks = t0, self._ticks + n
-        last = self._last  # a copy leaves with get_state: this array is the plug-in's own
-        last[0:4], last[4:7], last[7:10] = q_pkg[-1], omega_pkg[-1], v_pkg[-1]
-        if k == 0:
+        v = absent if v_w is None else _rows("v_w", v_w, n, 3, single)
+        if temperature_c is None:
+            temp, temp_default = _NO_ROWS, self._temp_default_c
+        elif np.ndim(temperature_c) == 0:
+            temp, temp_default = _NO_ROWS, float(temperature_c)
+            if not math.isfinite(temp_default):
+                raise ValueError(f"temperature_c must be finite, got {temperature_c!r}")
+        else:
+            temp, temp_default = _series("temperature_c", temperature_c, n), 0.0
+        given = K.HostRows(t, q, omega, force, accel, alpha, p, v, temp, temp_default)
+        if self.environment.disturbances:
+            return self._step_general(given, single, None if temperature_c is None or temp.shape[0] else temp_default)
+        plan = self._tick_plan(n)
+        code, value = tick_kernel(plan.record, given)
+        if code != TICK_OK:
+            if code == TICK_SENSOR:  # (the chip's outputs overflowed the bound: raises)
+                self.sensor._samples(value, 0, plan.outputs[:4], 0, 0)
+            raise ValueError(self._bad_input(int(code), int(value), given, single))
+        if value == 0 and not plan.after:
             return self._no_samples
-        q_true, speed = np.empty((k, 4)), np.empty(k)
-        K.truth_at_samples(samples.t_s, self.tick_s, self.sensor.input_rate_hz, first_tick, q_rows, v_rows,
-                           q_true, speed)
-        estimates = {}
+        return self._output(plan, int(value))
+
+    def _tick_plan(self, n: int) -> "_Plan":
+        """The compiled call's arrays for calls of up to n ticks, kept while the sensor's and
+        the estimators' ``arrays_version`` hold (a reset or a restored state replaces arrays)."""
+        plan = self._plan
+        versions = (self.sensor.arrays_version, *[est.arrays_version for est in self.estimators.values()])
+        if plan is not None and n <= plan.rows and versions == plan.versions:
+            return plan
+        rows = max(n, 1 if plan is None else plan.rows)
+        floats, words, status_bytes, flags = self.sensor._outputs(rows, 0, 0)
+        bound = flags.shape[0]
+        sensor = SensorArrays(*self.sensor.loop_arrays(), 0, 0, 0.0)
+        outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
+        truth = TruthAtSamples(np.empty((bound, 4)), np.empty(bound), self._gives_speed)
+        in_loop, after = [], []
         for label, est in self.estimators.items():
+            arrays = est.loop_arrays(bound)
+            if arrays is None:
+                after.append((label, est))
+            else:
+                in_loop.append((label, est, arrays))
+        record = TickPlan(self._host, self._clock, self._last_tick, self.environment.earth.field_enu_ut, sensor,
+                          outputs, truth, TickScratch.for_rows(rows),
+                          tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop))
+        compile_plan(record, _SINGLE_TRUTH, _BLOCK_TRUTH)
+        self._plan = _Plan(record, rows, versions, (floats, words, status_bytes, flags), truth, tuple(in_loop),
+                           tuple(after))
+        return self._plan
+
+    def _output(self, plan: "_Plan", k: int) -> PluginOutput:
+        """The compiled call's k samples, truth and in-loop estimates (copies: the arrays are
+        the plan's, written again by the next call), and the estimators that run after it."""
+        out = plan.outputs
+        samples = self.sensor._samples(-1, k, (out[0].copy(), out[1][:k].copy(), out[2][:k].copy(), out[3].copy()),
+                                       0, 0)
+        q_true = plan.truth.q_wb[:k].copy()
+        estimates = {}
+        for label, est, arrays in plan.in_loop:
+            e = est.loop_estimate(arrays, k)
+            estimate = Estimate(e.q_wb.copy(), e.flags.copy(), None if e.gyro_bias_b is None else e.gyro_bias_b.copy())
+            estimates[label] = EstimateOutput(estimate, q_true, self.frames)
+        if plan.after:
+            estimates.update(self._estimate(plan.after, samples, plan.truth.speed_mps[:k].copy(), q_true))
+            estimates = {label: estimates[label] for label in self.estimators}
+        return PluginOutput(self._t0 + samples.t_s, samples, q_true, estimates, self.frames)
+
+    def _estimate(self, estimators: Any, samples: ImuSamples, speed: np.ndarray, q_true: np.ndarray
+                  ) -> dict[str, EstimateOutput]:
+        """Estimators ``(label, estimator)`` by ``update`` on the samples."""
+        estimates = {}
+        for label, est in estimators:
             flags_in, speed_in = self._feeds[label]
             extra: dict[str, Any] = {}
             if flags_in:
@@ -340,12 +404,38 @@ class ImuPlugin:
                 extra["speed_mps"] = speed
             estimates[label] = EstimateOutput(est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra),
                                               q_true, self.frames)
-        return PluginOutput(t0 + samples.t_s, samples, q_true, estimates, self.frames)
+        return estimates
 
-    def _bad_input(self, code: int, row: int, t: np.ndarray, q: np.ndarray, single: bool) -> str:
+    def _step_general(self, given: K.HostRows, single: bool, temperature: float | None) -> PluginOutput:
+        """``step`` by one Python call per stage: the magnetic field of local disturbances
+        (``MagneticEnvironment.field_b``), the chip (``MPU9250.simulate``), every estimator by
+        ``update``; the same kernels for the rest, so the same numbers."""
+        n = 1 if single else given.t_s.shape[0]
+        scratch = TickScratch.for_rows(n)
+        chip = scratch.chip
+        code, row = K.prepare(self._host, self._clock, self._last_tick, given, chip)
+        if code:
+            raise ValueError(self._bad_input(int(code), int(row), given, single))
+        t = np.array([given.t_s]) if single else given.t_s
+        t0 = self._t0 if self._t0 is not None else float(t[0])
+        mag_b = self.environment.field_b(chip.q_wb, chip.p_w, t)
+        samples = self.sensor.simulate(chip.omega_b, chip.specific_force_b, mag_b,
+                                       given.temperature_c if given.temperature_c.shape[0] else temperature)
+        k = samples.t_s.shape[0]
+        q_true, speed = np.empty((k, 4)), np.empty(k)
+        K.finish_ticks(self._host, self._clock, self._last_tick, given, chip, n, samples.t_s, q_true, speed,
+                       scratch.q_rows, scratch.v_rows)
+        if k == 0:
+            return self._no_samples
+        return PluginOutput(t0 + samples.t_s, samples, q_true,
+                            self._estimate(self.estimators.items(), samples, speed, q_true), self.frames)
+
+    def _bad_input(self, code: int, row: int, given: K.HostRows, single: bool) -> str:
         name = K.BAD_INPUTS[code]
         where = "" if single else f" (row {row})"
-        due = float((t[0] if self._t0 is None else self._t0) + (self._ticks + row) * self.tick_s)
+        t = np.array([given.t_s]) if single else given.t_s
+        q = given.q_wb.reshape(-1, 4)
+        due = float((t[0] if self._t0 is None else self._t0) + (self.ticks + row) * self.tick_s)
         t = t.astype(object)  # Python floats in the messages
         if code == 2:
             before, tol = due - self.tick_s, K.TIME_TOL * self.tick_s
@@ -369,8 +459,25 @@ class ImuPlugin:
                 f"estimators={list(self.estimators)})")
 
 
-_ZERO3 = np.zeros(3)
 _NO_Q = np.empty((0, 4))
+_SINGLE_TRUTH = K.HostRows(0.0, np.zeros(4), _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, 0.0)
+_BLOCK_TRUTH = K.HostRows(_NO_ROWS, np.zeros((1, 4)), _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3,
+                          _NO_ROWS, 0.0)
+"""The two kinds of truth ``step`` gives the compiled call (one tick; a block of ticks): its types."""
+
+
+class _Plan(NamedTuple):
+    """The compiled call's record and what ``step`` reads of it: calls of up to ``rows``
+    ticks, built at these array ``versions``; the chip's output arrays; the truth at the
+    samples; the in-loop estimators (label, estimator, loop arrays) and those after it."""
+
+    record: TickPlan
+    rows: int
+    versions: tuple
+    outputs: tuple
+    truth: TruthAtSamples
+    in_loop: tuple
+    after: tuple
 
 
 def _empty_samples() -> ImuSamples:
@@ -401,7 +508,7 @@ def _rows(name: str, value: Any, n: int, width: int, single: bool) -> np.ndarray
     if single:
         if a.shape != (width,):
             raise ValueError(f"{name} must have shape ({width},) for one tick, got {a.shape}")
-        return a.reshape(1, width)
+        return a if a.flags.c_contiguous else np.ascontiguousarray(a)
     if a.shape != (n, width):
         raise ValueError(f"{name} must have shape ({n}, {width}) like t_s, got {a.shape}")
     return a if a.flags.c_contiguous else np.ascontiguousarray(a)
