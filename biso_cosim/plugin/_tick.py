@@ -3,7 +3,8 @@ truth checked and mapped to the chip (``_kernels.prepare``), the Earth's field i
 body, the MPU-9250, the truth at its samples, the clock, and every in-loop estimator.
 
 ``ImuPlugin`` gathers its arrays once into a ``TickPlan`` of named records and calls
-``tick_kernel(plan, given)`` with each call's truth (``HostRows``). Nothing here knows an
+``tick_kernel(plan, given)``, compiled for the plan (``compiled_calls``), with each call's
+truth (``HostRows``). Nothing here knows an
 estimator by type: each joins by its own ``loop_kernel`` and ``loop_arrays``
 (``biso_cosim.estimators.Estimator``, ``biso_cosim.loop``), as in the co-simulation's
 period call, and receives the call's samples as ``biso_cosim.loop.LoopSamples``.
@@ -12,7 +13,7 @@ period call, and receives the call's samples as ``biso_cosim.loop.LoopSamples``.
 from __future__ import annotations
 
 import warnings
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 from numba import literal_unroll, typeof, types
@@ -21,11 +22,11 @@ from numba.experimental import structref
 
 from biso_cosim._numba import jit
 from biso_cosim.loop import LoopSamples, SampleOutputs, SensorArrays
-from biso_cosim.plugin._kernels import ChipRows, _count, finish_ticks, prepare
+from biso_cosim.plugin._kernels import CLOCK_T0, ChipRows, HostRows, _count, finish_ticks, prepare
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
 
-__all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compile_plan", "TICK_OK", "TICK_SENSOR"]
+__all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compiled_calls", "TICK_OK", "TICK_SENSOR"]
 
 _FIRST_CLASS = "First-class function type feature is experimental"  # numba's label (see ``compile_plan``)
 
@@ -36,10 +37,12 @@ TICK_OK, TICK_SENSOR = 0, -1
 
 
 class TruthAtSamples(NamedTuple):
-    """The truth at the call's samples (up to the plan's bound): attitude (bound, 4), package
-    frames, and the reference point's forward speed (bound,); ``give_speed``: whether the
-    estimators receive the speed as ``speed_mps`` (``speed_from_velocity``)."""
+    """The truth at the call's samples (up to the plan's bound): the host's time of each
+    (t₀ plus the chip's time stamp, s), attitude (bound, 4), package frames, and the
+    reference point's forward speed (bound,); ``give_speed``: whether the estimators
+    receive the speed as ``speed_mps`` (``speed_from_velocity``)."""
 
+    t_s: np.ndarray
     q_wb: np.ndarray
     speed_mps: np.ndarray
     give_speed: bool
@@ -124,7 +127,9 @@ def tick_kernel(plan, given):
                  truth.speed_mps[:k], scratch.q_rows, scratch.v_rows)
     if k == 0:
         return TICK_OK, 0
+    t0_s = plan.clock[CLOCK_T0]
     for i in range(k):
+        truth.t_s[i] = t0_s + outputs.floats[i]
         outputs.imu_flags[i] = outputs.flags[i]
     samples = _samples_of(outputs, truth, k)
     for entry in literal_unroll(plan.estimators):
@@ -132,19 +137,16 @@ def tick_kernel(plan, given):
     return TICK_OK, k
 
 
-_COMPILED: set = set()
-
-
-def compile_plan(plan: TickPlan, given_single, given_block) -> TickPlan:
-    """``plan`` with ``tick_kernel`` compiled for its type and the two kinds of truth (one
-    tick, a block), once per set of estimators in a process. numba calls the estimators'
-    kernels held in the record through its first-class function type, which it labels
+def compiled_calls(plan: TickPlan, given_single: HostRows, given_block: HostRows) -> tuple[Callable, Callable]:
+    """``tick_kernel`` compiled for ``plan``'s type and each kind of truth (one tick, a block
+    of ticks: their types are ``given_single``'s and ``given_block``'s), once per set of
+    estimators in a process, as the two compiled functions (``Dispatcher.compile``). The
+    caller gives them truth of exactly these types (``ImuPlugin.step`` makes every array
+    C-contiguous float64), so a call skips the dispatcher's type resolution of its
+    arguments, which costs more than the tick itself. numba calls the estimators' kernels
+    held in the record through its first-class function type, which it labels
     experimental: the label is silenced here, where it is known why it appears."""
     plan_type = typeof(plan)
-    if plan_type not in _COMPILED:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=_FIRST_CLASS, category=NumbaExperimentalFeatureWarning)
-            for given in (given_single, given_block):
-                tick_kernel.compile((plan_type, typeof(given)))
-        _COMPILED.add(plan_type)
-    return plan
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=_FIRST_CLASS, category=NumbaExperimentalFeatureWarning)
+        return tuple(tick_kernel.compile((plan_type, typeof(given))) for given in (given_single, given_block))

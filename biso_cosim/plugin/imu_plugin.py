@@ -12,8 +12,7 @@ import numpy as np
 from biso_cosim.estimators import Estimate, Estimator, State, describe_estimator, estimator_inputs, make_estimator
 from biso_cosim.loop import SampleOutputs, SensorArrays
 from biso_cosim.plugin import _kernels as K
-from biso_cosim.plugin._tick import (TICK_OK, TICK_SENSOR, TickPlan, TickScratch, TruthAtSamples, compile_plan,
-                                     tick_kernel)
+from biso_cosim.plugin._tick import TICK_OK, TICK_SENSOR, TickPlan, TickScratch, TruthAtSamples, compiled_calls
 from biso_cosim.plugin.adapter import HostFrames
 from biso_cosim.plugin.output import EstimateOutput, PluginOutput, empty_estimate
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment, RawSamples
@@ -175,6 +174,12 @@ class ImuPlugin:
         self._gives_speed = any(speed for _, speed in self._feeds.values())
         self._temp_default_c = float(self.sensor.loop_arrays()[4])  # the profile's die temperature
         self._plan: _Plan | None = None
+        self._versioned = (self.sensor, *self.estimators.values())  # whose arrays_version the plan depends on
+        self.fast_path = True
+        """True (default): each call is one compiled call (``_tick.tick_kernel``) with the
+        estimators that declare a ``loop_kernel`` inside it; False: one Python call per
+        stage (the general path, also taken with local magnetic disturbances). The same
+        numbers either way, bit for bit."""
         # what a tick that latches no sample returns (most ticks: the ODR is below the tick
         # rate); its arrays are empty, so one object serves every such call
         none = _empty_samples()
@@ -235,8 +240,9 @@ class ImuPlugin:
         """The estimators that run inside the plug-in's compiled call (each declares a
         ``loop_kernel`` and gives ``loop_arrays``; ``biso_cosim.loop``); the others run by
         ``update`` after it. None run inside it with local magnetic disturbances (the call
-        takes the Earth's field alone): the whole call then takes the general path."""
-        if self.environment.disturbances:
+        takes the Earth's field alone) or with ``fast_path`` off: the whole call then takes
+        the general path."""
+        if not self.fast_path or self.environment.disturbances:
             return ()
         return tuple(label for label, est in self.estimators.items() if est.loop_arrays(0) is not None)
 
@@ -334,10 +340,12 @@ class ImuPlugin:
         else:
             temp, temp_default = _series("temperature_c", temperature_c, n), 0.0
         given = K.HostRows(t, q, omega, force, accel, alpha, p, v, temp, temp_default)
-        if self.environment.disturbances:
+        if not self.fast_path or self.environment.disturbances:
             return self._step_general(given, single, None if temperature_c is None or temp.shape[0] else temp_default)
-        plan = self._tick_plan(n)
-        code, value = tick_kernel(plan.record, given)
+        plan = self._plan
+        if plan is None or n > plan.rows or [o.arrays_version for o in self._versioned] != plan.versions:
+            plan = self._tick_plan(n)
+        code, value = (plan.call_single if single else plan.call_block)(plan.record, given)
         if code != TICK_OK:
             if code == TICK_SENSOR:  # (the chip's outputs overflowed the bound: raises)
                 self.sensor._samples(value, 0, plan.outputs[:4], 0, 0)
@@ -350,15 +358,13 @@ class ImuPlugin:
         """The compiled call's arrays for calls of up to n ticks, kept while the sensor's and
         the estimators' ``arrays_version`` hold (a reset or a restored state replaces arrays)."""
         plan = self._plan
-        versions = (self.sensor.arrays_version, *[est.arrays_version for est in self.estimators.values()])
-        if plan is not None and n <= plan.rows and versions == plan.versions:
-            return plan
+        versions = [o.arrays_version for o in self._versioned]
         rows = max(n, 1 if plan is None else plan.rows)
         floats, words, status_bytes, flags = self.sensor._outputs(rows, 0, 0)
         bound = flags.shape[0]
         sensor = SensorArrays(*self.sensor.loop_arrays(), 0, 0, 0.0)
         outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
-        truth = TruthAtSamples(np.empty((bound, 4)), np.empty(bound), self._gives_speed)
+        truth = TruthAtSamples(np.empty(bound), np.empty((bound, 4)), np.empty(bound), self._gives_speed)
         in_loop, after = [], []
         for label, est in self.estimators.items():
             arrays = est.loop_arrays(bound)
@@ -369,27 +375,29 @@ class ImuPlugin:
         record = TickPlan(self._host, self._clock, self._last_tick, self.environment.earth.field_enu_ut, sensor,
                           outputs, truth, TickScratch.for_rows(rows),
                           tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop))
-        compile_plan(record, _SINGLE_TRUTH, _BLOCK_TRUTH)
-        self._plan = _Plan(record, rows, versions, (floats, words, status_bytes, flags), truth, tuple(in_loop),
-                           tuple(after))
+        call_single, call_block = compiled_calls(record, _SINGLE_TRUTH, _BLOCK_TRUTH)
+        self._plan = _Plan(record, call_single, call_block, rows, versions, (floats, words, status_bytes, flags), truth,
+                           tuple(in_loop), tuple(after))
         return self._plan
 
     def _output(self, plan: "_Plan", k: int) -> PluginOutput:
         """The compiled call's k samples, truth and in-loop estimates (copies: the arrays are
         the plan's, written again by the next call), and the estimators that run after it."""
-        out = plan.outputs
-        samples = self.sensor._samples(-1, k, (out[0].copy(), out[1][:k].copy(), out[2][:k].copy(), out[3].copy()),
+        floats, words, status_bytes, flags = plan.outputs
+        samples = self.sensor._samples(-1, k, (floats.copy(), words[:k].copy(), status_bytes[:k].copy(), flags.copy()),
                                        0, 0)
-        q_true = plan.truth.q_wb[:k].copy()
+        truth, frames = plan.truth, self.frames
+        q_true = truth.q_wb[:k].copy()
         estimates = {}
         for label, est, arrays in plan.in_loop:
             e = est.loop_estimate(arrays, k)
-            estimate = Estimate(e.q_wb.copy(), e.flags.copy(), None if e.gyro_bias_b is None else e.gyro_bias_b.copy())
-            estimates[label] = EstimateOutput(estimate, q_true, self.frames)
+            bias = e.gyro_bias_b
+            estimates[label] = EstimateOutput(Estimate(e.q_wb.copy(), e.flags.copy(), None if bias is None else bias.copy()),
+                                              q_true, frames)
         if plan.after:
-            estimates.update(self._estimate(plan.after, samples, plan.truth.speed_mps[:k].copy(), q_true))
+            estimates.update(self._estimate(plan.after, samples, truth.speed_mps[:k].copy(), q_true))
             estimates = {label: estimates[label] for label in self.estimators}
-        return PluginOutput(self._t0 + samples.t_s, samples, q_true, estimates, self.frames)
+        return PluginOutput(truth.t_s[:k].copy(), samples, q_true, estimates, frames)
 
     def _estimate(self, estimators: Any, samples: ImuSamples, speed: np.ndarray, q_true: np.ndarray
                   ) -> dict[str, EstimateOutput]:
@@ -467,13 +475,16 @@ _BLOCK_TRUTH = K.HostRows(_NO_ROWS, np.zeros((1, 4)), _NO_ROWS3, _NO_ROWS3, _NO_
 
 
 class _Plan(NamedTuple):
-    """The compiled call's record and what ``step`` reads of it: calls of up to ``rows``
+    """The compiled call's record, its compiled function for one tick and for a block
+    (``_tick.compiled_calls``), and what ``step`` reads of it: calls of up to ``rows``
     ticks, built at these array ``versions``; the chip's output arrays; the truth at the
     samples; the in-loop estimators (label, estimator, loop arrays) and those after it."""
 
     record: TickPlan
+    call_single: Any
+    call_block: Any
     rows: int
-    versions: tuple
+    versions: list
     outputs: tuple
     truth: TruthAtSamples
     in_loop: tuple
