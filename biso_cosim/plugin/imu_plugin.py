@@ -4,6 +4,7 @@ simulator's vehicle (see the package docstring for the timing semantics)."""
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass, field
 from typing import Any, Mapping, NamedTuple, Sequence
 
@@ -312,25 +313,27 @@ class ImuPlugin:
         unit, a tick out of time, wrong shapes) raises ValueError naming the argument, and
         changes nothing.
         """
-        single = isinstance(t_s, (float, int, np.floating, np.integer)) or np.ndim(t_s) == 0
+        # every array handed to the compiled call is float64 of the dimensions of its type:
+        # (w,) vectors for one tick (any strides), C-contiguous (n, w) rows for a block
+        single = type(t_s) is float or isinstance(t_s, (int, np.floating, np.integer)) or np.ndim(t_s) == 0
         if single:
             t: Any = float(t_s)
-            n, absent = 1, _NO_ROWS
+            n, absent, rows = 1, _NO_ROWS, _vector
         else:
             t = _series("t_s", t_s)
-            n, absent = t.shape[0], _NO_ROWS3
-        q = _rows("q_wb", q_wb, n, 4, single)
-        omega = _rows("omega_b", omega_b, n, 3, single)
+            n, absent, rows = t.shape[0], _NO_ROWS3, _rows
+        q = rows("q_wb", q_wb, n, 4)
+        omega = rows("omega_b", omega_b, n, 3)
         if (specific_force_b is None) == (accel_w is None):
             raise ValueError("give either specific_force_b (body axes) or accel_w (world axes), not "
                              + ("both" if accel_w is not None else "neither"))
-        force = _rows("specific_force_b", specific_force_b, n, 3, single) if accel_w is None else absent
-        accel = absent if accel_w is None else _rows("accel_w", accel_w, n, 3, single)
-        alpha = absent if alpha_b is None else _rows("alpha_b", alpha_b, n, 3, single)
-        p = absent if p_w is None else _rows("p_w", p_w, n, 3, single)
+        force = rows("specific_force_b", specific_force_b, n, 3) if accel_w is None else absent
+        accel = absent if accel_w is None else rows("accel_w", accel_w, n, 3)
+        alpha = absent if alpha_b is None else rows("alpha_b", alpha_b, n, 3)
+        p = absent if p_w is None else rows("p_w", p_w, n, 3)
         if v_w is None and self._gives_speed:
             raise ValueError("v_w is required at every tick: the plug-in was built with speed_from_velocity=True")
-        v = absent if v_w is None else _rows("v_w", v_w, n, 3, single)
+        v = absent if v_w is None else rows("v_w", v_w, n, 3)
         if temperature_c is None:
             temp, temp_default = _NO_ROWS, self._temp_default_c
         elif np.ndim(temperature_c) == 0:
@@ -339,11 +342,11 @@ class ImuPlugin:
                 raise ValueError(f"temperature_c must be finite, got {temperature_c!r}")
         else:
             temp, temp_default = _series("temperature_c", temperature_c, n), 0.0
-        given = K.HostRows(t, q, omega, force, accel, alpha, p, v, temp, temp_default)
+        given = K.HostRows._make((t, q, omega, force, accel, alpha, p, v, temp, temp_default))
         if not self.fast_path or self.environment.disturbances:
             return self._step_general(given, single, None if temperature_c is None or temp.shape[0] else temp_default)
         plan = self._plan
-        if plan is None or n > plan.rows or [o.arrays_version for o in self._versioned] != plan.versions:
+        if plan is None or n > plan.rows or list(map(_ARRAYS_VERSION, self._versioned)) != plan.versions:
             plan = self._tick_plan(n)
         code, value = (plan.call_single if single else plan.call_block)(plan.record, given)
         if code != TICK_OK:
@@ -358,7 +361,7 @@ class ImuPlugin:
         """The compiled call's arrays for calls of up to n ticks, kept while the sensor's and
         the estimators' ``arrays_version`` hold (a reset or a restored state replaces arrays)."""
         plan = self._plan
-        versions = [o.arrays_version for o in self._versioned]
+        versions = list(map(_ARRAYS_VERSION, self._versioned))
         rows = max(n, 1 if plan is None else plan.rows)
         floats, words, status_bytes, flags = self.sensor._outputs(rows, 0, 0)
         bound = flags.shape[0]
@@ -468,7 +471,10 @@ class ImuPlugin:
 
 
 _NO_Q = np.empty((0, 4))
-_SINGLE_TRUTH = K.HostRows(0.0, np.zeros(4), _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, _NO_ROWS, 0.0)
+_ARRAYS_VERSION = operator.attrgetter("arrays_version")
+_ANY_STRIDES = np.zeros(2)[::2]  # (its numba type: a 1-d float64 array of any layout)
+_SINGLE_TRUTH = K.HostRows(0.0, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES,
+                           _ANY_STRIDES, _NO_ROWS, 0.0)
 _BLOCK_TRUTH = K.HostRows(_NO_ROWS, np.zeros((1, 4)), _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3,
                           _NO_ROWS, 0.0)
 """The two kinds of truth ``step`` gives the compiled call (one tick; a block of ticks): its types."""
@@ -511,15 +517,26 @@ def _series(name: str, value: Any, n: int | None = None) -> np.ndarray:
     return a if a.flags.c_contiguous else np.ascontiguousarray(a)
 
 
-def _rows(name: str, value: Any, n: int, width: int, single: bool) -> np.ndarray:
+def _vector(name: str, value: Any, n: int, width: int) -> np.ndarray:
+    """One tick's vector of ``width`` numbers as float64 (width,) (any strides)."""
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be real numbers, got {type(value).__name__}") from None
-    if single:
-        if a.shape != (width,):
-            raise ValueError(f"{name} must have shape ({width},) for one tick, got {a.shape}")
-        return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+    if a.shape != _VECTOR_SHAPES[width]:
+        raise ValueError(f"{name} must have shape ({width},) for one tick, got {a.shape}")
+    return a
+
+
+_VECTOR_SHAPES = {3: (3,), 4: (4,)}
+
+
+def _rows(name: str, value: Any, n: int, width: int) -> np.ndarray:
+    """A block's rows of ``width`` numbers as C-contiguous float64 (n, width)."""
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be real numbers, got {type(value).__name__}") from None
     if a.shape != (n, width):
         raise ValueError(f"{name} must have shape ({n}, {width}) like t_s, got {a.shape}")
     return a if a.flags.c_contiguous else np.ascontiguousarray(a)
