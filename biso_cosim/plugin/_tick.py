@@ -3,7 +3,7 @@ truth checked and mapped to the chip (``_kernels.prepare``), the Earth's field i
 body, the MPU-9250, the truth at its samples, the clock, and every in-loop estimator.
 
 ``ImuPlugin`` gathers its arrays once into a ``TickPlan`` of named records and calls
-``tick_kernel(plan, given)``, compiled for the plan (``compiled_calls``), with each call's
+``tick_kernel(plan, given)``, compiled for the plan (``compiled_call``), with each call's
 truth (``HostRows``). Nothing here knows an
 estimator by type: each joins by its own ``loop_kernel`` and ``loop_arrays``
 (``biso_cosim.estimators.Estimator``, ``biso_cosim.loop``), as in the co-simulation's
@@ -26,7 +26,7 @@ from biso_cosim.plugin._kernels import CLOCK_T0, ChipRows, HostRows, _count, fin
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
 
-__all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compiled_calls", "TICK_OK", "TICK_SENSOR"]
+__all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compiled_call", "TICK_OK", "TICK_SENSOR"]
 
 _FIRST_CLASS = "First-class function type feature is experimental"  # numba's label (see ``compile_plan``)
 
@@ -137,16 +137,16 @@ def tick_kernel(plan, given):
     return TICK_OK, k
 
 
-def compiled_calls(plan: TickPlan, given_single: HostRows, given_block: HostRows) -> tuple[Callable, Callable]:
-    """``tick_kernel`` compiled for ``plan``'s type and each kind of truth (one tick, a block
-    of ticks: their types are ``given_single``'s and ``given_block``'s), once per set of
-    estimators in a process, as the two compiled functions (``Dispatcher.compile``). The
-    caller gives them truth of exactly these types (``ImuPlugin.step`` makes every array
-    C-contiguous float64), so a call skips the dispatcher's type resolution of its
-    arguments, which costs more than the tick itself. numba calls the estimators' kernels
-    held in the record through its first-class function type, which it labels
-    experimental: the label is silenced here, where it is known why it appears."""
-    plan_type = typeof(plan)
+def compiled_call(plan_type: types.Type, given: HostRows) -> Callable:
+    """``tick_kernel`` compiled for a plan of type ``plan_type`` (``numba.typeof``) and truth
+    of ``given``'s type (one tick or a block), as the compiled function
+    (``Dispatcher.compile``; compiled once per set of estimators and kind of truth in a
+    process). The caller gives it a plan of that type and truth of exactly that type
+    (``ImuPlugin.step`` makes every array float64 of its type's dimensions, C-contiguous
+    where the type says so): a call then skips the dispatcher's resolution of the argument
+    types, which costs more than the tick itself. numba calls the estimators' kernels held
+    in the record through its first-class function type, which it labels experimental: the
+    label is silenced here, where it is known why it appears."""
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=_FIRST_CLASS, category=NumbaExperimentalFeatureWarning)
-        return tuple(tick_kernel.compile((plan_type, typeof(given))) for given in (given_single, given_block))
+        return tick_kernel.compile((plan_type, typeof(given)))

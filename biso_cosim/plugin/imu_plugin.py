@@ -9,11 +9,12 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
+from numba import typeof
 
 from biso_cosim.estimators import Estimate, Estimator, State, describe_estimator, estimator_inputs, make_estimator
 from biso_cosim.loop import SampleOutputs, SensorArrays
 from biso_cosim.plugin import _kernels as K
-from biso_cosim.plugin._tick import TICK_OK, TICK_SENSOR, TickPlan, TickScratch, TruthAtSamples, compiled_calls
+from biso_cosim.plugin._tick import TICK_OK, TICK_SENSOR, TickPlan, TickScratch, TruthAtSamples, compiled_call
 from biso_cosim.plugin.adapter import HostFrames
 from biso_cosim.plugin.output import EstimateOutput, PluginOutput, empty_estimate
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment, RawSamples
@@ -348,7 +349,8 @@ class ImuPlugin:
         plan = self._plan
         if plan is None or n > plan.rows or list(map(_ARRAYS_VERSION, self._versioned)) != plan.versions:
             plan = self._tick_plan(n)
-        code, value = (plan.call_single if single else plan.call_block)(plan.record, given)
+        call = plan.calls[single] or self._compile(plan, single)
+        code, value = call(plan.record, given)
         if code != TICK_OK:
             if code == TICK_SENSOR:  # (the chip's outputs overflowed the bound: raises)
                 self.sensor._samples(value, 0, plan.outputs[:4], 0, 0)
@@ -378,10 +380,16 @@ class ImuPlugin:
         record = TickPlan(self._host, self._clock, self._last_tick, self.environment.earth.field_enu_ut, sensor,
                           outputs, truth, TickScratch.for_rows(rows),
                           tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop))
-        call_single, call_block = compiled_calls(record, _SINGLE_TRUTH, _BLOCK_TRUTH)
-        self._plan = _Plan(record, call_single, call_block, rows, versions, (floats, words, status_bytes, flags), truth,
-                           tuple(in_loop), tuple(after))
+        self._plan = _Plan(record, typeof(record), [None, None], rows, versions, (floats, words, status_bytes, flags),
+                           truth, tuple(in_loop), tuple(after))
         return self._plan
+
+    @staticmethod
+    def _compile(plan: "_Plan", single: bool) -> Any:
+        """The compiled call of ``plan`` for one tick or for blocks (on the first such call)."""
+        call = compiled_call(plan.record_type, _SINGLE_TRUTH if single else _BLOCK_TRUTH)
+        plan.calls[single] = call
+        return call
 
     def _output(self, plan: "_Plan", k: int) -> PluginOutput:
         """The compiled call's k samples, truth and in-loop estimates (copies: the arrays are
@@ -392,11 +400,10 @@ class ImuPlugin:
         truth, frames = plan.truth, self.frames
         q_true = truth.q_wb[:k].copy()
         estimates = {}
-        for label, est, arrays in plan.in_loop:
-            e = est.loop_estimate(arrays, k)
-            bias = e.gyro_bias_b
-            estimates[label] = EstimateOutput(Estimate(e.q_wb.copy(), e.flags.copy(), None if bias is None else bias.copy()),
-                                              q_true, frames)
+        for label, est, arrays in plan.in_loop:  # (the outputs every loop_arrays holds: biso_cosim.loop)
+            bias = arrays.gyro_bias_b[:k].copy() if est.estimates_bias else None
+            estimates[label] = EstimateOutput(Estimate(arrays.q_wb[:k].copy(), arrays.flags[:k].copy(), bias), q_true,
+                                              frames)
         if plan.after:
             estimates.update(self._estimate(plan.after, samples, truth.speed_mps[:k].copy(), q_true))
             estimates = {label: estimates[label] for label in self.estimators}
@@ -481,14 +488,15 @@ _BLOCK_TRUTH = K.HostRows(_NO_ROWS, np.zeros((1, 4)), _NO_ROWS3, _NO_ROWS3, _NO_
 
 
 class _Plan(NamedTuple):
-    """The compiled call's record, its compiled function for one tick and for a block
-    (``_tick.compiled_calls``), and what ``step`` reads of it: calls of up to ``rows``
-    ticks, built at these array ``versions``; the chip's output arrays; the truth at the
-    samples; the in-loop estimators (label, estimator, loop arrays) and those after it."""
+    """The compiled call's record, its numba type and its compiled functions for blocks and
+    for one tick (``calls[False]``, ``calls[True]``: ``_tick.compiled_call``, made on first
+    use), and what ``step`` reads of it: calls of up to ``rows`` ticks, built at these
+    array ``versions``; the chip's output arrays; the truth at the samples; the in-loop
+    estimators (label, estimator, loop arrays) and those after it."""
 
     record: TickPlan
-    call_single: Any
-    call_block: Any
+    record_type: Any
+    calls: list
     rows: int
     versions: list
     outputs: tuple
