@@ -40,12 +40,16 @@ class TruthAtSamples(NamedTuple):
     """The truth at the call's samples (up to the plan's bound): the host's time of each
     (t₀ plus the chip's time stamp, s), attitude (bound, 4), package frames, and the
     reference point's forward speed (bound,); ``give_speed``: whether the estimators
-    receive the speed as ``speed_mps`` (``speed_from_velocity``)."""
+    receive the speed as ``speed_mps`` (``speed_from_velocity``); ``packed`` (0, 0): the
+    ``LoopSamples.truth`` of the plug-in, which has no packed truth rows of the package's
+    car (``TRUTH_LAYOUT``; no estimator reads them, they are for the co-simulation's
+    consumers)."""
 
     t_s: np.ndarray
     q_wb: np.ndarray
     speed_mps: np.ndarray
     give_speed: bool
+    packed: np.ndarray
 
 
 class TickScratch(NamedTuple):
@@ -100,7 +104,7 @@ def _samples_of(outputs, truth, k):
     speed = truth.speed_mps[:k] if truth.give_speed else truth.speed_mps[:0]
     return LoopSamples(floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
                        floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
-                       outputs.imu_flags[:k], speed, truth.q_wb[:k])
+                       outputs.imu_flags[:k], speed, truth.packed)
 
 
 @jit(cache=False)  # (a plan's type names its estimators' kernels: compiled once per process for each set)

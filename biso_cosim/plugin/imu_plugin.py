@@ -369,7 +369,8 @@ class ImuPlugin:
         bound = flags.shape[0]
         sensor = SensorArrays(*self.sensor.loop_arrays(), 0, 0, 0.0)
         outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
-        truth = TruthAtSamples(np.empty(bound), np.empty((bound, 4)), np.empty(bound), self._gives_speed)
+        truth = TruthAtSamples(np.empty(bound), np.empty((bound, 4)), np.empty(bound), self._gives_speed,
+                               np.empty((0, 0)))
         in_loop, after = [], []
         for label, est in self.estimators.items():
             arrays = est.loop_arrays(bound)
