@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{os.getloadavg()[0]:.1f} after ({os.cpu_count()} cores)")
     print(f"{'':44} {'µs/tick':>9} {'× host step':>12}")
     print(f"{'host: pybullet stepSimulation + state reads':44} {host_s * 1e6:9.1f} {1.0:12.3f}")
-    for label, cost in ((f"plug-in, one call per tick", tick_s),
+    for label, cost in (("plug-in, one call per tick", tick_s),
                         (f"plug-in, one call per {args.block} ticks", block_s),
                         ("(MPU9250.simulate alone, one row per call)", sensor_s)):
         print(f"{label:44} {cost * 1e6:9.1f} {cost / host_s:12.3f}")

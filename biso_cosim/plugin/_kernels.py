@@ -1,5 +1,8 @@
-"""The plug-in's numba kernels: check and convert a block of host truth rows; the truth at
-the chip's sample instants.
+"""The plug-in's numba kernels on named records: check and convert a call's host truth
+(``HostRows``: one tick's vectors or a block's rows) into the chip's inputs (``ChipRows``,
+by the constant map ``HostMap``); the truth at the chip's sample instants and the clock
+(``finish_ticks``). ``_tick.tick_kernel`` runs them inside the plug-in's compiled call,
+the general path of ``imu_plugin.py`` one by one.
 
 Kernels never raise: ``prepare`` returns a code naming the first bad input and its row, and
 the wrapper (``imu_plugin.py``) turns it into the ValueError. The frames' scalar kernels

@@ -21,7 +21,7 @@ from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 
 from biso_cosim._numba import jit
-from biso_cosim.loop import LoopSamples, SampleOutputs, SensorArrays
+from biso_cosim.loop import LoopSamples
 from biso_cosim.plugin._kernels import CLOCK_T0, ChipRows, HostRows, _count, finish_ticks, prepare
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body

@@ -352,8 +352,9 @@ class ImuPlugin:
         call = plan.calls[single] or self._compile(plan, single)
         code, value = call(plan.record, given)
         if code != TICK_OK:
-            if code == TICK_SENSOR:  # (the chip's outputs overflowed the bound: raises)
-                self.sensor._samples(value, 0, plan.outputs[:4], 0, 0)
+            if code == TICK_SENSOR:  # (inputs checked by the call: a fault of the plug-in, not of the host)
+                raise RuntimeError(f"the MPU-9250 kernel refused the plug-in's checked rows (status {int(value)}; "
+                                   "-2: its outputs' bound is wrong)")
             raise ValueError(self._bad_input(int(code), int(value), given, single))
         if value == 0 and not plan.after:
             return self._no_samples
@@ -480,7 +481,8 @@ class ImuPlugin:
 
 _NO_Q = np.empty((0, 4))
 _ARRAYS_VERSION = operator.attrgetter("arrays_version")
-_ANY_STRIDES = np.zeros(2)[::2]  # (its numba type: a 1-d float64 array of any layout)
+_ANY_STRIDES = np.zeros(4)[::2]  # a strided (2,): its numba type is a 1-d float64 array of any layout
+assert typeof(_ANY_STRIDES).layout == "A"  # (numpy calls arrays of one element contiguous, whatever their strides)
 _SINGLE_TRUTH = K.HostRows(0.0, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES, _ANY_STRIDES,
                            _ANY_STRIDES, _NO_ROWS, 0.0)
 _BLOCK_TRUTH = K.HostRows(_NO_ROWS, np.zeros((1, 4)), _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3, _NO_ROWS3,
