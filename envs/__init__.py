@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["ENV_IDS", "register_envs", "AttitudeEstimationEnv", "GainTuningEnv", "DrivingEnv", "random_route",
+__all__ = ["ENV_IDS", "MAX_EPISODE_STEPS", "register_envs", "AttitudeEstimationEnv", "GainTuningEnv", "DrivingEnv", "random_route",
            "reference_markdown", "IMU_FIELDS", "GNSS_FIELDS", "ResetNeeded"]
 
 ENV_IDS: dict[str, str] = {
@@ -32,6 +32,16 @@ ENV_IDS: dict[str, str] = {
     "biso_cosim/Driving-v0": "biso_cosim.envs.driving:DrivingEnv",
 }
 """Environment id → entry point (``module:class``)."""
+
+MAX_EPISODE_STEPS: dict[str, int] = {
+    "biso_cosim/AttitudeEstimation-v0": 5000,
+    "biso_cosim/GainTuning-v0": 5000,
+    "biso_cosim/Driving-v0": 10000,
+}
+"""``max_episode_steps`` of the registrations: 100 s (Driving 200 s) at the default 50 Hz,
+more than any default episode of ``figure8`` (3250, 3250 and 4600 steps) and of the
+procedural routes, which the environments truncate themselves at ``episode_duration_s``.
+Pass ``max_episode_steps=`` to ``gym.make`` for longer routes or other rates."""
 
 _LAZY = {
     "AttitudeEstimationEnv": "biso_cosim.envs.attitude_estimation",
@@ -51,7 +61,7 @@ def register_envs() -> None:
 
     for env_id, entry_point in ENV_IDS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=entry_point)
+            gymnasium.register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS[env_id])
 
 
 register_envs()

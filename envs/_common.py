@@ -28,7 +28,7 @@ import numpy as np
 
 from biso_cosim.cosim import CoSimulation, EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._kernels import _inside, _push_window, _window_work
+from biso_cosim.envs._kernels import _inside, _push_window, _scale_observation, _window_work
 from biso_cosim.envs.procedural import random_route
 from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import ImuSamples, Profile
@@ -36,7 +36,10 @@ from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["CosimEnv", "ImuWindow", "GnssInput", "IMU_FIELDS", "GNSS_FIELDS", "RENDER_MODES", "COMMON_ARGUMENTS",
-           "ResetNeeded", "display_available"]
+           "ResetNeeded", "display_available", "Scale", "IMU_SCALES", "GNSS_SCALES"]
+
+MAX_SEED = 2**63 - 1
+"""The largest episode seed ``reset`` takes (the range the environments draw seeds from)."""
 
 RANDOM_ROUTE = "random"
 """The ``route`` value that asks for a new procedurally generated route every episode."""
@@ -144,6 +147,34 @@ delivered during the last step, ``age_s`` the time from its validity to the newe
 sample (latency included), position (m) in the route's local ENU frame, velocity (m/s)."""
 
 
+class Scale(tuple):
+    """How one observed column is normalised: ``(scale, low, high, unit)``; the observation
+    holds ``physical / scale`` clipped to ``[low, high]`` (bounds in scaled units)."""
+
+    def __new__(cls, scale: float, low: float, high: float, unit: str):
+        return super().__new__(cls, (float(scale), float(low), float(high), unit))
+
+
+G0 = 9.80665
+IMU_SCALES: dict[str, Scale] = {
+    **{f"gyro_{a}": Scale(1.0, -1.0, 1.0, "rad/s") for a in "xyz"},  # bounds: the gyro's full scale (set per env)
+    **{f"accel_{a}": Scale(G0, -1.0, 1.0, "m/s²") for a in "xyz"},  # bounds: the accelerometer's full scale
+    **{f"mag_{a}": Scale(50.0, -4912.0 / 50.0, 4912.0 / 50.0, "µT") for a in "xyz"},  # AK8963 range ±4912 µT
+    "mag_fresh": Scale(1.0, 0.0, 1.0, "-"),
+    "new": Scale(1.0, 0.0, 1.0, "-"),
+}
+"""Normalisation of the IMU columns: gyro in rad/s, accelerometer in g (9.80665 m/s²),
+magnetometer in units of 50 µT (about the Earth's field); bounds at the chip's full-scale
+ranges (set by the registers: ±4.36 rad/s and ±4 g by default)."""
+
+GNSS_SCALES: dict[str, Scale] = {
+    "valid": Scale(1.0, 0.0, 1.0, "-"), "new": Scale(1.0, 0.0, 1.0, "-"), "age_s": Scale(1.0, 0.0, 60.0, "s"),
+    **{f"pos_{a}": Scale(100.0, -100.0, 100.0, "m") for a in "enu"},
+    **{f"vel_{a}": Scale(10.0, -10.0, 10.0, "m/s") for a in "enu"},
+}
+"""Normalisation of the GNSS columns: position in units of 100 m (±10 km of the route's
+origin), velocity in units of 10 m/s, age in s (clipped at 60 s)."""
+
 class GnssInput:
     """A virtual GNSS receiver fed with the truth at the IMU's sample times, holding its newest fix.
 
@@ -222,8 +253,9 @@ def _gl_context(width: int, height: int):
 class _Offscreen:
     """Frames of one camera of a model into RGB arrays (the core of ``mujoco.Renderer``)."""
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, camera: str):
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, camera: str, road: list | None = None):
         self.model = model
+        self._road = road or []  # boxes drawn into each frame's scene (``_render.road_geoms``)
         self._context = _gl_context(width, height)
         self._scene = mujoco.MjvScene(model, maxgeom=10000)
         self._option = mujoco.MjvOption()
@@ -234,14 +266,20 @@ class _Offscreen:
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._mjr)
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self._pixels = np.empty((height, width, 3), dtype=np.uint8)
+        self._depth = np.empty((height, width), dtype=np.float32)
 
     def render(self, data: mujoco.MjData) -> np.ndarray:
+        from biso_cosim.envs._render import add_geoms, paint_sky
+
         self._context.make_current()
         mujoco.mjv_updateScene(self.model, data, self._option, None, self._camera, mujoco.mjtCatBit.mjCAT_ALL,
                                self._scene)
+        add_geoms(self._scene, self._road)
         mujoco.mjr_render(self._rect, self._scene, self._mjr)
-        mujoco.mjr_readPixels(self._pixels, None, self._rect, self._mjr)
-        return np.flipud(self._pixels).copy()
+        mujoco.mjr_readPixels(self._pixels, self._depth, self._rect, self._mjr)
+        frame = np.flipud(self._pixels).copy()
+        paint_sky(frame, np.flipud(self._depth))
+        return frame
 
     def close(self) -> None:
         if self._context is not None:
@@ -298,7 +336,10 @@ def _check_number(name: str, value: Any, *, low: float | None = None, high: floa
 def _sensor_profile(sensor_profile: Any, sensor_noise: bool) -> Profile:
     if not isinstance(sensor_noise, (bool, np.bool_)):
         raise TypeError(f"sensor_noise must be True or False, got {sensor_noise!r}")
-    profile = Profile.load(sensor_profile)
+    try:
+        profile = Profile.load(sensor_profile)
+    except (ValueError, FileNotFoundError, TypeError) as exc:
+        raise ValueError(f"sensor_profile: {exc}") from None
     if not sensor_noise:
         profile = profile.replace(name=f"{profile.name}-noiseless", **{key: 0.0 for key in _NOISE_KEYS})
     return profile
@@ -354,7 +395,10 @@ class CosimEnv(gym.Env):
             if random_route_options is not None:
                 raise ValueError('random_route_options needs route="random"')
             self._route_options = None
-            first = load_route(route)
+            try:
+                first = load_route(route)
+            except (ValueError, FileNotFoundError, TypeError) as exc:
+                raise ValueError(f"route: {exc}") from None
         # Built now for a fixed route (its errors surface here), and rebuilt per episode for random ones.
         self._sim = self._build(first, seed=0)
         self.dt = 1.0 / self._sim.vehicle.control_rate_hz
@@ -366,9 +410,36 @@ class CosimEnv(gym.Env):
         """IMU samples in each observation (see ImuWindow)."""
         self._window = ImuWindow(self.imu_slots)
         self._gnss = None if gnss_rate_hz is None else GnssInput(gnss_profile, gnss_rate_hz, self.imu_rate_hz)
-        self.observation_structure = {"imu": (self.imu_slots, len(IMU_FIELDS))}
+        # the physical (raw, float64) parts the environment keeps; the observation is their
+        # normalised float32 image (``_set_observation_space``)
+        self._raw_structure = {"imu": (self.imu_slots, len(IMU_FIELDS))}
+        imu = self._sim.imu.registers
+        gyro_fs, accel_fs = imu.gyro_full_scale, imu.accel_full_scale / G0
+        self._raw_scales: dict[str, dict[str, Scale]] = {"imu": {
+            **IMU_SCALES, **{f"gyro_{a}": Scale(1.0, -gyro_fs, gyro_fs, "rad/s") for a in "xyz"},
+            **{f"accel_{a}": Scale(G0, -accel_fs, accel_fs, "m/s²") for a in "xyz"}}}
+        # Constant columns are left out (part → column → the rows where it is constant; a column
+        # goes when it is constant on every row): ``new`` is 1 on the newest floor(ODR / control
+        # rate) rows every step, all of them when the rates divide; ``mag_fresh`` is the same
+        # every step when the magnetometer's samples fall on the same rows (100 Hz AK8963 at
+        # 200 Hz ODR, 4 samples a step: rows 1 and 3), and 0 with the AK8963 off (its
+        # field columns read 0 then too).
+        whole = abs(self.imu_rate_hz * self.dt - self.imu_slots) < 1e-9
+        mag_rate_hz = self._sim.imu.mag_rate_hz
+        if mag_rate_hz > 0.0:
+            mag_every = self.imu_rate_hz / mag_rate_hz
+            mag_fixed = (whole and abs(mag_every - round(mag_every)) < 1e-9
+                         and self.imu_slots % max(round(mag_every), 1) == 0)
+        else:
+            mag_fixed = True
+        always_new = int(math.floor(self.imu_rate_hz * self.dt + 1e-9))
+        self._dropped: dict[str, dict[str, range]] = {"imu": {
+            "new": range(self.imu_slots - min(always_new, self.imu_slots), self.imu_slots),
+            **({"mag_fresh": range(self.imu_slots)} if mag_fixed else {}),
+            **({f"mag_{a}": range(self.imu_slots) for a in "xyz"} if mag_rate_hz <= 0.0 else {})}}
         if self._gnss is not None:
-            self.observation_structure["gnss"] = (len(GNSS_FIELDS),)
+            self._raw_structure["gnss"] = (len(GNSS_FIELDS),)
+            self._raw_scales["gnss"] = dict(GNSS_SCALES)
         self._viewer: _Offscreen | _Window | None = None
         self._running = False
         # the truth at the newest sample (a packed ``Truth`` row): a view of the co-simulation's
@@ -407,7 +478,10 @@ class CosimEnv(gym.Env):
         """Seed the episode, set up its route and sensor, and rewind the co-simulation."""
         if options:
             raise ValueError(f"reset options are not used by this environment, got {sorted(options)}")
-        super().reset(seed=seed)
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))
+                                 or not 0 <= seed <= MAX_SEED):
+            raise ValueError(f"seed must be None or an int in [0, 2**63 - 1], got {seed!r}")
+        super().reset(seed=None if seed is None else int(seed))
         episode_seed = int(seed) if seed is not None else int(self.np_random.integers(0, 2**63 - 1))
         route_sequence, sensor_sequence, gnss_sequence = np.random.SeedSequence(episode_seed).spawn(3)
         sensor_seed = self._sensor_seed if self._sensor_seed is not None else _int_seed(sensor_sequence)
@@ -514,7 +588,10 @@ class CosimEnv(gym.Env):
             self._viewer = None
         if self._viewer is None:
             if self.render_mode == "rgb_array":
-                self._viewer = _Offscreen(model, *self._render_size, camera=self.CAMERA)
+                from biso_cosim.envs._render import road_geoms
+
+                self._viewer = _Offscreen(model, *self._render_size, camera=self.CAMERA,
+                                          road=road_geoms(self._sim.route))
             else:
                 self._viewer = _Window(model, data, camera=self.CAMERA)
         return self._viewer.render(data)
@@ -526,30 +603,87 @@ class CosimEnv(gym.Env):
 
     # ------------------------------------------------------------------ observations
     def split_observation(self, observation: np.ndarray) -> dict[str, np.ndarray]:
-        """The parts of a flat observation by name, shaped as in ``observation_structure``."""
+        """The parts of an observation by name in physical units (float64: the observation
+        times its scales), shaped as in ``observation_structure``."""
         obs = np.asarray(observation)
         if obs.shape != self.observation_space.shape:
             raise ValueError(f"observation must have shape {self.observation_space.shape}, got {obs.shape}")
+        physical = obs.astype(np.float64) * self.observation_scale
         out, start = {}, 0
         for name, shape in self.observation_structure.items():
             size = int(np.prod(shape))
-            out[name] = obs[start:start + size].reshape(shape)
+            out[name] = physical[start:start + size].reshape(shape)
+            start += size
+        return out
+
+    def physical_observation(self) -> dict[str, np.ndarray]:
+        """The current observation's parts exactly as the environment keeps them (float64,
+        SI units, every column, e.g. the IMU rows with all of ``IMU_FIELDS``): copies."""
+        return {name: part.copy() for name, part in self._raw_parts(self._observation_buffer).items()}
+
+    def _raw_parts(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        out, start = {}, 0
+        for name, shape in self._raw_structure.items():
+            size = int(np.prod(shape))
+            out[name] = raw[start:start + size].reshape(shape)
             start += size
         return out
 
     def _set_observation_space(self) -> None:
-        """The observation space of ``observation_structure``, and the array an observation
-        is a copy of: ``_observation_parts`` are views of it by name (the IMU window and the
-        GNSS part are kept in it; a subclass keeps its own parts there too)."""
-        size = sum(int(np.prod(shape)) for shape in self.observation_structure.values())
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        """The observation space, and the array the physical parts are kept in:
+        ``_observation_parts`` are views of it by name (the IMU window and the GNSS part are
+        kept in it; a subclass keeps its own parts there too).
+
+        The observation is the float32 image of that array: each column divided by its scale
+        (``_raw_scales``: name → column → ``Scale``) and clipped to its bounds, without the
+        columns in ``_dropped`` (constant ones). ``observation_structure`` names its parts,
+        ``observation_fields`` its columns, ``observation_scale`` the scale of each."""
+        size = sum(int(np.prod(shape)) for shape in self._raw_structure.values())
+        index, scale, low, high, fields = [], [], [], [], []
+        self.observation_structure = {}
+        start = 0
+        for name, shape in self._raw_structure.items():
+            columns = self._raw_scales[name]
+            if len(columns) != shape[-1]:
+                raise RuntimeError(f"{type(self).__name__}: part {name!r} has {shape[-1]} columns, "
+                                   f"{len(columns)} scales")  # (a programming error)
+            dropped = self._dropped.get(name, {})
+            rows = int(np.prod(shape[:-1]))
+            # a column is kept when some row keeps it (rows where it is constant then read it too)
+            kept = [j for j, column in enumerate(columns) if len(dropped.get(column, ())) < rows]
+            for r in range(rows):
+                for j in kept:
+                    column = list(columns)[j]
+                    sc = columns[column]
+                    index.append(start + r * shape[-1] + j)
+                    scale.append(sc[0])
+                    low.append(sc[1])
+                    high.append(sc[2])
+                    fields.append(f"{name}[{r}].{column}" if len(shape) > 1 else f"{name}.{column}")
+            self.observation_structure[name] = (*shape[:-1], len(kept))
+            start += int(np.prod(shape))
+        self._obs_index = np.array(index, dtype=np.int64)
+        self.observation_scale = np.array(scale)
+        """Physical value of one unit of each observed column (SI units of ``observation_fields``)."""
+        self.observation_fields = tuple(fields)
+        """Name of each observed column: ``part[row].column``."""
+        self._obs_inverse_scale = 1.0 / self.observation_scale
+        self._obs_low = np.array(low, dtype=np.float32)
+        self._obs_high = np.array(high, dtype=np.float32)
+        self.observation_space = gym.spaces.Box(self._obs_low.copy(), self._obs_high.copy(), dtype=np.float32)
+        self._obs_bounds = (self._obs_index, self._obs_inverse_scale, self._obs_low.astype(np.float64),
+                            self._obs_high.astype(np.float64))
         self._observation_buffer = np.zeros(size)
-        self._observation_parts = self.split_observation(self._observation_buffer)
+        self._observation_parts = self._raw_parts(self._observation_buffer)
         for holder, name in ((self._window, "imu"), (self._gnss, "gnss")):
             if holder is not None:
                 self._observation_parts[name][:] = holder.values
                 holder.values = self._observation_parts[name]
 
+    def _public(self, raw: np.ndarray) -> np.ndarray:
+        """The observation of a raw (physical) array: scaled, clipped, float32."""
+        return _scale_observation(raw, *self._obs_bounds)
+
     def _observation(self) -> np.ndarray:
-        """The observation now: a copy of the array its parts are kept in."""
-        return self._observation_buffer.copy()
+        """The observation now."""
+        return _scale_observation(self._observation_buffer, *self._obs_bounds)

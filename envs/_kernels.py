@@ -14,7 +14,7 @@ from biso_cosim.frames import _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls
 
-__all__ = ["_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
+__all__ = ["_scale_observation", "_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
            "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work"]
 
@@ -46,6 +46,16 @@ def _push_window(values, gyro, accel, mag, fresh):
             values[i, 6 + j] = mag[src, j] if finite else 0.0
         values[i, 9] = 1.0 if (fresh[src] and finite) else 0.0
         values[i, 10] = 1.0
+
+
+@jit
+def _scale_observation(raw, index, inverse_scale, low, high):
+    """The public observation of a raw (physical, float64) one: out[j] = raw[index[j]] ·
+    inverse_scale[j], clipped to [low[j], high[j]], as a new float32 array."""
+    out = np.empty(index.shape[0], dtype=np.float32)
+    for j in range(index.shape[0]):
+        out[j] = min(max(raw[index[j]] * inverse_scale[j], low[j]), high[j])
+    return out
 
 
 @jit
@@ -208,7 +218,8 @@ def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_in
     angle between q_est and the true attitude (rad), forward speed (m/s), the driver's
     progress and cross-track error (m), the path's length (m). obs = window (ravelled),
     gnss, q_est, wheel speeds (rate × radius), steering, the pose the route ahead is placed
-    from (nav_pose, or the true pose with use_truth), the route ahead of it
+    from (nav_pose, or the true pose with use_truth) relative to the route (signed offset
+    from the centre line, m, left +; heading relative to the route's, rad), the route ahead of it
     (``_route_ahead`` from the nearest point found by ``_locate`` in Path.locate's window
     around nav_hint). Returns the index of that nearest point (the next call's hint)."""
     w, x, y, z = newest[7], newest[8], newest[9], newest[10]
@@ -233,12 +244,15 @@ def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_in
         obs[i + j] = q_est[j]
         obs[i + 4 + j] = newest[18 + j] * wheel_radius_m
     obs[i + 8] = sensordata[steer_index]
-    for j in range(3):
-        obs[i + 9 + j] = pose[j]
-    i += 12
     lo = max(nav_hint - LOCATE_BACK, 0)
     hi = min(nav_hint + LOCATE_AHEAD, path_s.shape[0] - 1)
-    nearest, s, _ = _locate(path_x, path_y, path_s, pose[0], pose[1], lo, hi)
+    nearest, s, offset = _locate(path_x, path_y, path_s, pose[0], pose[1], lo, hi)
+    # the pose relative to the route: signed offset from the centre line (left +) and heading
+    # relative to the direction of travel of the nearest segment
+    heading = math.atan2(path_y[nearest + 1] - path_y[nearest], path_x[nearest + 1] - path_x[nearest])
+    obs[i + 9] = offset
+    obs[i + 10] = (pose[2] - heading + math.pi) % (2.0 * math.pi) - math.pi
+    i += 11
     _route_ahead(path_x, path_y, path_s, s, offsets, pose[0], pose[1], pose[2], obs[i:].reshape((offsets.shape[0], 2)))
     return nearest
 

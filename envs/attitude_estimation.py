@@ -11,7 +11,7 @@ from gymnasium.utils import EzPickle
 
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work
 from biso_cosim.frames import quat_from_euler
@@ -21,6 +21,7 @@ from biso_cosim.vehicle.sim import Truth
 __all__ = ["AttitudeEstimationEnv"]
 
 _ACTION_TYPES = ("quaternion", "euler")
+_QUATERNION_SCALES = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
 
 
 class AttitudeEstimationEnv(CosimEnv, EzPickle):
@@ -38,10 +39,10 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     `(w, x, y, z)`, Hamilton, `q_wb` maps body vectors to world vectors.
 
     ## Action Space
-    With `action_type="quaternion"` (default) a `Box(-1, 1, (4,), float64)`: the estimate
+    With `action_type="quaternion"` (default) a `Box(-1, 1, (4,), float32)`: the estimate
     `q_wb = (w, x, y, z)`, normalised by the environment (any non-zero length; `q` and `-q`
     are the same attitude). With `action_type="euler"` a `Box([-π, -π/2, -π], [π, π/2, π],
-    (3,), float64)`: roll, pitch, yaw in rad (intrinsic z-y-x, yaw counter-clockwise from
+    (3,), float32)`: roll, pitch, yaw in rad (intrinsic z-y-x, yaw counter-clockwise from
     East). NaN/inf or a wrong shape raise `ValueError`, and so does an all-zero quaternion;
     out-of-bounds values are clipped to the box (or refused with `action_bounds="raise"`).
 
@@ -53,20 +54,32 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     | 3 | z | -1 | 1 | - |
 
     ## Observation Space
-    A `Box(-inf, inf, (11·n,), float64)` (`+9` with GNSS, `+4` with `observe_baseline=True`),
-    in this order (`env.unwrapped.observation_structure`, `env.unwrapped.split_observation(obs)`):
+    A bounded `Box(low, high, (9·n + 4,), float32)` (`+9` with GNSS, `+4` with
+    `observe_baseline=True`): physical values divided by documented scales and clipped to
+    the bounds (`env.unwrapped.observation_fields` names each column,
+    `env.unwrapped.observation_scale` gives its unit's size, `split_observation(obs)` returns
+    the parts in SI units, `physical_observation()` the exact float64 values), in this order
+    (`env.unwrapped.observation_structure`):
 
-    - *imu (n × 11):* the newest `n = ceil(ODR / control rate)` IMU samples, oldest first
-      (4 at the default 200 Hz and 50 Hz), each row `gyro_x, gyro_y, gyro_z` (rad/s),
-      `accel_x, accel_y, accel_z` (specific force, m/s², +g up at rest), `mag_x, mag_y,
-      mag_z` (µT), `mag_fresh` (1: a new AK8963 measurement with this sample; it holds its
-      last one in between), `new` (1: the sample arrived during the last step). When the
-      rates do not divide, rows not renewed this step repeat older samples with `new = 0`.
+    - *imu (n × 9):* the newest `n = ceil(ODR / control rate)` IMU samples, oldest first
+      (4 at the default 200 Hz and 50 Hz), each row `gyro_x, gyro_y, gyro_z` (in rad/s,
+      bounds the gyro's full scale, ±4.36 rad/s by default), `accel_x, accel_y, accel_z`
+      (specific force in g = 9.80665 m/s², +1 up at rest; bounds the full scale, ±4 g),
+      `mag_x, mag_y, mag_z` (in units of 50 µT, about the Earth's field; bounds the AK8963's
+      ±4912 µT). Two flags join each row when they are not constant: `mag_fresh` (1: a new
+      AK8963 measurement with this sample; at 200 Hz / 100 Hz / 50 Hz the fresh rows are always
+      the 2nd and 4th, so it is left out) and `new` (1: the sample arrived during the last
+      step; left out when the rates divide). When they do not, rows not renewed this step
+      repeat older samples with `new = 0`.
     - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix delivered so far: `valid`,
-      `new` (delivered during the last step), `age_s` (from its time of validity to the newest
-      IMU sample, latency included), position `pos_e, pos_n, pos_u` (m, the route's local
-      ENU frame) and velocity `vel_e, vel_n, vel_u` (m/s); zeros with `valid = 0` before the
-      first fix and during outages.
+      `new` (delivered during the last step), `age_s` (s, from its time of validity to the
+      newest IMU sample, latency included; bounds 0–60 s), position `pos_e, pos_n, pos_u`
+      (units of 100 m in the route's local ENU frame) and velocity `vel_e, vel_n, vel_u`
+      (units of 10 m/s); zeros with `valid = 0` before the first fix and during outages.
+    - *estimate_q_wb (4):* the agent's own previous estimate fed back: the attitude of its
+      last action as a unit quaternion with w ≥ 0 (identity at reset). With it a policy can
+      propagate its estimate with the gyro samples, as a filter does, rather than re-deriving
+      the attitude from one step's accelerometer and magnetometer samples.
     - *baseline_q_wb (4), only with `observe_baseline=True`:* the reference estimator's
       attitude at the newest sample (for residual agents that correct it).
 
@@ -139,14 +152,19 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self.action_type = action_type
         self.observe_baseline = bool(observe_baseline)
         if action_type == "quaternion":
-            self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float64)
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         else:
             self.ACTION_NAMES = ("roll", "pitch", "yaw")
-            high = np.array([math.pi, 0.5 * math.pi, math.pi])
-            self.action_space = spaces.Box(-high, high, dtype=np.float64)
+            high = np.array([math.pi, 0.5 * math.pi, math.pi], dtype=np.float32)
+            self.action_space = spaces.Box(-high, high, dtype=np.float32)
+        self._raw_structure["estimate_q_wb"] = (4,)
+        self._raw_scales["estimate_q_wb"] = _QUATERNION_SCALES
         if self.observe_baseline:
-            self.observation_structure["baseline_q_wb"] = (4,)
+            self._raw_structure["baseline_q_wb"] = (4,)
+            self._raw_scales["baseline_q_wb"] = _QUATERNION_SCALES
         self._set_observation_space()
+        # the agent's previous estimate, fed back (unit, w >= 0; identity at reset)
+        self._estimate_q = self._observation_parts["estimate_q_wb"]
         # the newest reference estimate (in the observation when observed)
         self._baseline_q = self._observation_parts.get("baseline_q_wb", np.empty(4))
         self._baseline_q[:] = (1.0, 0.0, 0.0, 0.0)
@@ -154,6 +172,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
+        self._estimate_q[:] = (1.0, 0.0, 0.0, 0.0)
         self._first_period()
         info.update(self._state_info())
         info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
@@ -167,6 +186,9 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         info["error_rad"] = error
         reward = -error
         info["reward_attitude"] = reward
+        w, x, y, z = q.tolist()
+        norm = math.copysign(math.sqrt(w * w + x * x + y * y + z * z), w if w != 0.0 else 1.0)
+        self._estimate_q[:] = (w / norm, x / norm, y / norm, z / norm)
         self._advance()
         truncated = self._truncated
         self._end_if(False, truncated)

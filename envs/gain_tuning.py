@@ -10,9 +10,9 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.cosim import EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
@@ -28,7 +28,7 @@ k = 2π f_c/√2 and k_p = r·2π f_c/√6 (r = 1: the paper's Butterworth desig
 r = 0: no cross-links). docs/design.md §5, reading D."""
 
 DEFAULT_TUNING: dict[str, dict[str, tuple[float, float, str]]] = {
-    "biso": {"cutoff_hz": (0.01, 20.0, "log"), CROSS_LINK_RATIO: (0.0, 2.0, "linear")},
+    "biso": {"cutoff_hz": (0.001, 20.0, "log"), CROSS_LINK_RATIO: (0.0, 2.0, "linear")},
     "biso_plus": {"k_tilt": (0.1, 50.0, "log"), "k_heading": (0.005, 5.0, "log"), "tau_acc_s": (0.1, 10.0, "log")},
 }
 """Tuned parameters per estimator: name → (low, high, scale); the action maps [-1, 1] onto
@@ -77,13 +77,27 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     Gains change without a jump in the estimate (`Estimator.set_params`).
 
+    The default episodes make the tuning a real trade-off that depends on the episode: a new
+    procedurally generated route each episode (`route="random"`, 80–100 s: long enough for
+    the gyro's drift to matter) and a raw MPU-9250 part (`sensor_profile="mpu9250"`: the
+    datasheet's turn-on bias, scale-factor and misalignment spreads and noise, uncalibrated,
+    a new part every episode). Too little correction lets the gyro bias integrate into tens
+    of degrees; too much follows the accelerometer through the car's accelerations and the
+    magnetometer's errors. The best constant f_c found by search (`biso_cosim.envs.gain_oracle`)
+    lies inside the range and changes from episode to episode (0.04–0.14 Hz on the evaluation
+    seeds, against the paper's 10 Hz); the best cross-link ratio is mostly r = 0, the edge of
+    its range (no cross-links). `docs/envs.md` tabulates the oracle, the paper's gains, the best
+    single constant and trained policies (`benchmarks/rl_baselines.py`). The earlier task, the
+    calibrated part on `figure8`, is `route="figure8", sensor_profile="mpu9250_calibrated"`
+    (its optimum is the weakest correction: the range decides it).
+
     ## Action Space
-    A `Box(-1, 1, (m,), float64)`, one entry per tuned parameter, mapped onto its range
+    A `Box(-1, 1, (m,), float32)`, one entry per tuned parameter, mapped onto its range
     linearly or logarithmically (`tuning`). Default for `biso`:
 
     | Num | Parameter | Min | Max | Scale | Unit |
     |---|---|---|---|---|---|
-    | 0 | `cutoff_hz`: Butterworth design frequency f_c, k = 2π f_c/√2 | 0.01 | 20 | log | Hz |
+    | 0 | `cutoff_hz`: Butterworth design frequency f_c, k = 2π f_c/√2 | 0.001 | 20 | log | Hz |
     | 1 | `cross_link_ratio` r = √3 k_p/k (1: the paper's design, 0: no cross-links) | 0 | 2 | linear | - |
 
     Default for `biso_plus`: `k_tilt` (0.1–50 s⁻¹, log), `k_heading` (0.005–5 s⁻¹, log),
@@ -92,12 +106,13 @@ class GainTuningEnv(CosimEnv, EzPickle):
     out-of-bounds values are clipped (or refused with `action_bounds="raise"`).
 
     ## Observation Space
-    A `Box(-inf, inf, (11·n + 4 + m,), float64)` (`+9` with GNSS), in this order
-    (`env.unwrapped.observation_structure`):
+    A bounded `Box(low, high, (9·n + 4 + m,), float32)` (`+9` with GNSS), scaled as in
+    `AttitudeEstimation-v0` (`observation_fields`, `observation_scale`, `split_observation`),
+    in this order (`env.unwrapped.observation_structure`):
 
-    - *imu (n × 11):* the newest `n = ceil(ODR / control rate)` IMU samples as in
-      `AttitudeEstimation-v0` (gyro rad/s, accelerometer m/s², magnetometer µT, `mag_fresh`,
-      `new`);
+    - *imu (n × 9):* the newest `n = ceil(ODR / control rate)` IMU samples as in
+      `AttitudeEstimation-v0` (gyro in rad/s, accelerometer in g, magnetometer in 50 µT; the
+      flags `mag_fresh` and `new` where they are not constant);
     - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix as in `AttitudeEstimation-v0`;
     - *q_wb (4):* the tuned estimator's attitude at the newest sample;
     - *gains (m):* the gains in force, as the normalised action that sets them.
@@ -138,11 +153,11 @@ class GainTuningEnv(CosimEnv, EzPickle):
                   "None: `DEFAULT_TUNING[estimator]`",
     }
 
-    def __init__(self, *, route: str | Route = "figure8", estimator: str = "biso",
+    def __init__(self, *, route: str | Route = "random", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None,
                  tuning: Mapping[str, tuple[float, float, str]] | None = None,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
-                 sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
+                 sensor_profile: str = "mpu9250", sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
                  gnss_rate_hz: float | None = None,
                  gnss_profile: str = "consumer", control_rate_hz: float = 50.0,
@@ -158,6 +173,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self.tuning = _check_tuning(estimator, tuning)
         self.estimator = estimator
         fixed = dict(estimator_params or {})
+        self.estimator_params = dict(fixed)
+        """The fixed parameters of both copies."""
         clash = sorted(set(fixed) & (set(self.tuning) | ({"k", "k_p"} if CROSS_LINK_RATIO in self.tuning else set())))
         if clash:
             raise ValueError(f"estimator_params {clash} are tuned by the action; remove them")
@@ -176,8 +193,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._closed_names = (*names, "k", "k_p")
         self._closed_values = np.empty(len(names) + 2)  # (the action's values, then k, k_p)
         m = len(self.tuning)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float64)
-        self.observation_structure.update(q_wb=(4,), gains=(m,))
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float32)
+        self._raw_structure.update(q_wb=(4,), gains=(m,))
+        self._raw_scales.update(q_wb={c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"},
+                                gains={name: Scale(1.0, -1.0, 1.0, "-") for name in self.tuning})
         self._set_observation_space()
         baseline = self._sim.estimators["baseline"].params
         self._reading = getattr(baseline, "reading", None)  # BISO's (fixed by estimator_params)

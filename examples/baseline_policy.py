@@ -1,6 +1,7 @@
 """Evaluate the BISO baseline as a policy in AttitudeEstimation-v0, next to simpler policies.
 
-A policy sees only the observation: the IMU samples of the last step. ``BisoPolicy`` runs
+A policy sees only the observation: the IMU samples of the last step (here in full float64
+precision, ``physical_observation()``: the values the float32 observation is scaled from). ``BisoPolicy`` runs
 the faithful BISO estimator (Aleshkin et al. 2024) on them and answers with its attitude;
 it scores exactly the environment's own reference (``info["baseline_error_rad"]``), which
 this script checks. For scale, three more policies: BISO tuned to a 0.05 Hz cutoff without
@@ -20,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import biso_cosim.envs  # noqa: F401  (registers biso_cosim/AttitudeEstimation-v0)
+from biso_cosim.envs import IMU_FIELDS
 from biso_cosim.estimators import make_estimator, reference_attitude
 
 
@@ -28,7 +30,7 @@ class BisoPolicy:
 
     def __init__(self, env, name="biso", **params):
         core = env.unwrapped
-        self.split = core.split_observation
+        self.core = core
         # the site's magnetic declination is map knowledge a real system has too
         declination = core.sim.earth.declination_rad
         self.estimator = make_estimator(name, core.imu_rate_hz, declination_rad=declination, **params)
@@ -37,8 +39,8 @@ class BisoPolicy:
         self.estimator.reset()
 
     def __call__(self, obs):
-        imu = self.split(obs)["imu"]
-        new = imu[:, 10] == 1.0  # rows that arrived during the last step
+        imu = self.core.physical_observation()["imu"]  # (the observation's samples, exactly)
+        new = imu[:, IMU_FIELDS.index("new")] == 1.0  # rows that arrived during the last step
         return self.estimator.update(imu[new, 0:3], imu[new, 3:6], imu[new, 6:9]).q_wb[-1]
 
 
@@ -47,14 +49,14 @@ class AccelMagPolicy:
 
     def __init__(self, env):
         core = env.unwrapped
-        self.split = core.split_observation
+        self.core = core
         self.declination = core.sim.earth.declination_rad
 
     def reset(self):
         self.last = np.array([1.0, 0.0, 0.0, 0.0])
 
     def __call__(self, obs):
-        imu = self.split(obs)["imu"]
+        imu = self.core.physical_observation()["imu"]
         q = reference_attitude(imu[-1:, 3:6], imu[-1:, 6:9], declination_rad=self.declination)[0]
         if np.all(np.isfinite(q)):  # (NaN only for a zero specific force)
             self.last = q

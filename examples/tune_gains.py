@@ -50,6 +50,8 @@ def score(vec, actions: np.ndarray, seeds: list[int]) -> tuple[np.ndarray, float
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--route", default="figure8")
+    parser.add_argument("--profile", default="mpu9250_calibrated",
+                        help="sensor profile (GainTuning-v0's own default is the raw 'mpu9250')")
     parser.add_argument("--duration", type=float, default=12.0, help="simulated seconds per episode")
     parser.add_argument("--seeds", type=int, default=2, help="episodes per candidate")
     parser.add_argument("--population", type=int, default=6)
@@ -59,8 +61,8 @@ def main():
     args = parser.parse_args()
 
     vec = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=args.mode, route=args.route,
-                       episode_duration_s=args.duration)
-    probe = gym.make(ENV_ID, route=args.route, episode_duration_s=args.duration).unwrapped
+                       sensor_profile=args.profile, episode_duration_s=args.duration)
+    probe = gym.make(ENV_ID, route=args.route, sensor_profile=args.profile, episode_duration_s=args.duration).unwrapped
     seeds = list(range(100, 100 + args.seeds))
     rng = np.random.default_rng(0)
     mean, std = np.zeros(probe.action_space.shape), np.full(probe.action_space.shape, 0.6)

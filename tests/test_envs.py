@@ -2,6 +2,7 @@
 determinism under a seed, pickling, vector environments, resets, bad actions, rendering."""
 
 import json
+import math
 import pickle
 import subprocess
 import sys
@@ -89,8 +90,10 @@ def test_make_with_module_prefix_in_a_fresh_process():
     # (importing biso_cosim must register the ids: biso_cosim/__init__.py imports biso_cosim.envs)
     assert run.returncode == 0, run.stderr[-2000:]
     shapes = json.loads(run.stdout.splitlines()[-1])
-    assert shapes == {"biso_cosim/AttitudeEstimation-v0": [44], "biso_cosim/GainTuning-v0": [50],
-                      "biso_cosim/Driving-v0": [76]}
+    # 4 IMU rows of 9 columns (`mag_fresh` and `new` are constant per row at 200 Hz / 50 Hz:
+    # left out), then each task's parts
+    assert shapes == {"biso_cosim/AttitudeEstimation-v0": [40], "biso_cosim/GainTuning-v0": [42],
+                      "biso_cosim/Driving-v0": [67]}
 
 
 @pytest.mark.parametrize(("env_id", "kwargs"), CASES, ids=CASE_IDS)
@@ -133,6 +136,29 @@ def test_rendered_frames_follow_the_car():
     assert np.mean(np.abs(first.astype(int) - later.astype(int))) > 0.5
     env.close()
     env.close()  # closing twice is allowed
+
+
+def test_rendered_frames_show_the_road_and_a_sky():
+    """The asphalt (dark grey, the road's colour) under the car, a blue sky above the horizon."""
+    if not gl_available():
+        pytest.skip("no OpenGL backend (EGL, OSMesa or a display) on this machine")
+    from biso_cosim.envs._render import ROAD_WIDTH_M, road_geoms
+
+    env = gym.make("biso_cosim/Driving-v0", render_mode="rgb_array", render_width=160, render_height=90, **SHORT)
+    env.reset(seed=0)
+    frame = env.render().astype(int)
+    top, bottom = frame[:5], frame[-10:]
+    assert (top[..., 2] > top[..., 0] + 40).mean() > 0.9  # sky: blue over red
+    asphalt = (np.abs(bottom - 46).max(axis=-1) < 12).mean()  # 0.18 grey, lit
+    assert asphalt > 0.3, asphalt
+    # the road follows the route: its boxes' centres lie on the centre line, at the terrain's height
+    route = env.unwrapped.route
+    geoms = road_geoms(route)
+    centres = np.array([pos[:2] for _, pos, _, rgba in geoms if rgba[0] < 0.5])
+    hint = int(np.argmin(np.hypot(route.path.x_m - centres[10][0], route.path.y_m - centres[10][1])))
+    _, _, offset = route.path.locate(*centres[10], hint)
+    assert abs(offset) < 0.1 and geoms[0][0][1] == pytest.approx(0.5 * ROAD_WIDTH_M)
+    env.close()
 
 
 def test_human_mode_only_with_a_display():
@@ -344,7 +370,7 @@ def test_out_of_bounds_actions_clip_or_raise(env_id):
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
-    ({"route": "nowhere"}, "unknown route"),
+    ({"route": "nowhere"}, "^route: unknown route"),
     ({"control_rate_hz": 30.0}, "whole multiple"),
     ({"episode_duration_s": -1.0}, "episode_duration_s"),
     ({"sensor_seed": -2}, "sensor_seed"),
@@ -353,7 +379,7 @@ def test_out_of_bounds_actions_clip_or_raise(env_id):
     ({"action_type": "matrix"}, "action_type"),
     ({"render_width": 5000}, "render_width"),
     ({"render_mode": "ascii"}, "render_mode"),
-    ({"sensor_profile": "mpu6050"}, "profile"),
+    ({"sensor_profile": "mpu6050"}, "^sensor_profile: profile"),
     ({"estimator": "kalman"}, "unknown estimator"),
     ({"gnss_rate_hz": 50.0}, "gnss_rate_hz"),
     ({"gnss_rate_hz": 5.0, "gnss_profile": "survey"}, "gnss_profile"),
@@ -362,6 +388,53 @@ def test_out_of_bounds_actions_clip_or_raise(env_id):
 def test_bad_arguments_name_themselves(kwargs, message):
     with pytest.raises(ValueError, match=message):
         gym.make("biso_cosim/AttitudeEstimation-v0", **kwargs)
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, 1.5, "7", True])
+def test_bad_seeds_name_themselves(seed):
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", **SHORT)
+    with pytest.raises(ValueError, match=r"^seed must be None or an int in \[0, 2\*\*63 - 1\]"):
+        env.reset(seed=seed)
+    env.reset(seed=2**63 - 1)  # the top of the range is fine
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), CASES, ids=CASE_IDS)
+def test_spaces_are_bounded_float32_without_constant_columns(env_id, kwargs):
+    """Bounded float32 Boxes; the observation is the physical state over its documented scales
+    (clipped to the bounds); no column stays constant over an episode of random actions."""
+    env = gym.make(env_id, episode_duration_s=4.0, **kwargs)
+    core = env.unwrapped
+    for space in (env.observation_space, env.action_space):
+        assert space.dtype == np.float32 and space.is_bounded()
+    assert len(core.observation_fields) == env.observation_space.shape[0] == core.observation_scale.shape[0]
+    assert env.spec.max_episode_steps == biso_cosim.envs.MAX_EPISODE_STEPS[env_id.replace("biso_cosim:", "")]
+    observations = [obs for obs, *_ in rollout(env, seed=5, steps=200)]
+    obs = observations[-1]
+    assert obs.dtype == np.float32 and env.observation_space.contains(obs)
+    # the observation is the physical parts over their scales (the parts the observation keeps)
+    physical = core.physical_observation()
+    split = core.split_observation(obs)
+    for name, part in split.items():
+        raw = physical[name]
+        if name == "imu" and part.shape[-1] < raw.shape[-1]:
+            raw = raw[:, :part.shape[-1]]  # (`mag_fresh` and `new`, the last columns, left out)
+        np.testing.assert_allclose(part, raw, rtol=1e-6, atol=1e-6 * np.abs(raw).max(initial=1.0))
+    stacked = np.stack(observations[1:])
+    constant = [f for f, column in zip(core.observation_fields, stacked.T) if np.all(column == column[0])]
+    if core.imu_slots != core.imu_rate_hz * core.dt:  # rates that do not divide: `new` is 1 on the newest
+        always = math.floor(core.imu_rate_hz * core.dt)  # floor(ODR / control rate) rows (kept for the others)
+        constant = [f for f in constant if f not in [f"imu[{r}].new" for r in range(core.imu_slots - always,
+                                                                                        core.imu_slots)]]
+    constant = [f for f in constant if f != "gnss.valid"]  # (0 only in outages, before the first fix)
+    # (a sensor without noise reads the same quantised field while the car waits at the start)
+    assert not constant or kwargs.get("sensor_profile") == "ideal" or kwargs.get("sensor_noise") is False, constant
+
+
+def test_make_vec_with_the_plain_id_after_the_import():
+    vec = gym.make_vec("biso_cosim/Driving-v0", num_envs=2, vectorization_mode="sync", **SHORT)
+    obs, _ = vec.reset(seed=0)
+    assert obs.shape == (2, 67) and obs.dtype == np.float32
+    vec.close()
 
 
 def test_common_arguments_agree_across_environments():
@@ -373,8 +446,13 @@ def test_common_arguments_agree_across_environments():
 
     signatures = [inspect.signature(cls.__init__).parameters for cls in (AttitudeEstimationEnv, GainTuningEnv,
                                                                          DrivingEnv)]
+    # GainTuning's episodes differ on purpose: random routes and a raw part (a real trade-off)
+    own_defaults = {"route", "sensor_profile"}
     for name in COMMON_ARGUMENTS:
         first = signatures[0][name]
+        if name in own_defaults:
+            assert signatures[0][name].default == signatures[2][name].default, name
+            continue
         for params in signatures[1:]:
             assert (params[name].default, params[name].annotation, params[name].kind) == \
                 (first.default, first.annotation, first.kind), name

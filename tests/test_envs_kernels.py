@@ -9,7 +9,8 @@ from types import SimpleNamespace
 
 from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _drive_action,
                                       _driving_period, _driving_view, _mean_angle, _mean_angles_to, _navigate_period,
-                                      _push_window, _route_ahead, _tune_closed, _tuning_period)
+                                      _push_window, _route_ahead, _scale_observation, _tune_closed,
+                                      _tuning_period)
 from biso_cosim.estimators import make_estimator
 from biso_cosim.estimators.biso import gains_from_cutoff
 from biso_cosim.envs.procedural import random_route
@@ -209,7 +210,7 @@ def test_driving_view_matches_the_plain_parts(use_truth):
     nav_pose = np.array([path.x_m[i] - 0.3, path.y_m[i] + 0.2, 0.4])
     offsets = 2.0 * np.arange(1, 11)
     driver_state = rng.normal(size=12)
-    obs, values = np.empty(11 * 4 + 9 + 12 + 20), np.empty(9)
+    obs, values = np.empty(11 * 4 + 9 + 11 + 20), np.empty(9)
     nearest = _driving_view(obs, window, gnss, q_est, newest, sensordata, 3, 29, 0.316, nav_pose, use_truth,
                             path.x_m, path.y_m, path.s_m, i - 3, offsets, driver_state, values)
     w, x, y, z = newest[7:11]
@@ -218,12 +219,26 @@ def test_driving_view_matches_the_plain_parts(use_truth):
                                _angle(q_est, newest[7:11]), newest[17], driver_state[S_S], driver_state[S_CROSS],
                                path.length_m]
     pose = true_pose if use_truth else nav_pose.tolist()
-    index, s, _ = path.locate(pose[0], pose[1], i - 3)
+    index, s, offset = path.locate(pose[0], pose[1], i - 3)
+    # the pose relative to the route: offset from the centre line, heading relative to the segment's
+    heading = math.atan2(path.y_m[index + 1] - path.y_m[index], path.x_m[index + 1] - path.x_m[index])
+    relative = [offset, (pose[2] - heading + math.pi) % (2.0 * math.pi) - math.pi]
     ahead = np.empty((10, 2))
     _route_ahead(path.x_m, path.y_m, path.s_m, s, offsets, *pose, ahead)
-    expected = np.concatenate([window.ravel(), gnss, q_est, newest[18:22] * 0.316, sensordata[29:30], pose,
+    expected = np.concatenate([window.ravel(), gnss, q_est, newest[18:22] * 0.316, sensordata[29:30], relative,
                                ahead.ravel()])
     assert nearest == index and obs.tolist() == expected.tolist()
+
+
+def test_scale_observation_is_the_clipped_quotient_in_float32():
+    rng = np.random.default_rng(3)
+    raw = rng.normal(0.0, 10.0, size=30)
+    index = np.array([0, 3, 4, 29, 7], dtype=np.int64)
+    scale = rng.uniform(0.5, 5.0, size=5)
+    low, high = -np.ones(5), np.ones(5)
+    out = _scale_observation(raw, index, 1.0 / scale, low, high)
+    assert out.dtype == np.float32
+    np.testing.assert_array_equal(out, np.clip(raw[index] * (1.0 / scale), low, high).astype(np.float32))
 
 
 def test_route_ahead_matches_index_at():

@@ -89,7 +89,7 @@ def test_baseline_as_the_action_scores_the_baseline_error():
     obs, info = env.reset(seed=4)
     total, baseline_total = 0.0, 0.0
     while True:
-        baseline_q = env.unwrapped.split_observation(obs)["baseline_q_wb"]
+        baseline_q = env.unwrapped.physical_observation()["baseline_q_wb"]
         obs, reward, terminated, truncated, info = env.step(baseline_q)
         # info is about the instant the action was judged: that of the previous observation
         np.testing.assert_array_equal(info["q_wb_baseline"], baseline_q)
@@ -119,7 +119,7 @@ def test_observation_holds_the_sensor_stream_exactly(control_rate_hz, physics_ra
     while True:
         samples, _, _ = reference.step()
         stream.extend(np.column_stack([samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh]))
-        imu = core.split_observation(obs)["imu"]
+        imu = core.physical_observation()["imu"]
         new = imu[:, IMU_FIELDS.index("new")] == 1.0
         assert new.sum() == len(samples) and (not len(samples) or new[-1])
         expected = np.array(stream[-slots:])
@@ -149,7 +149,7 @@ def test_gnss_part_holds_the_receivers_newest_fix():
         while True:
             truth = periods[-1][1]
             fixes = receiver.simulate(truth.pos_w, truth.vel_w)
-            gnss = dict(zip(GNSS_FIELDS, core.split_observation(obs)["gnss"]))
+            gnss = dict(zip(GNSS_FIELDS, core.physical_observation()["gnss"]))
             assert gnss["new"] == float(len(fixes) > 0)
             if len(fixes):
                 delivered += 1
@@ -173,11 +173,11 @@ def test_gnss_part_holds_the_receivers_newest_fix():
 
 def test_gain_mapping_round_trips_and_hits_the_ends():
     env = gym.make("biso_cosim/GainTuning-v0", **SHORT).unwrapped
-    assert env.params_from_action(np.array([-1.0, -1.0])) == {"cutoff_hz": 0.01, CROSS_LINK_RATIO: 0.0}
+    assert env.params_from_action(np.array([-1.0, -1.0])) == {"cutoff_hz": 0.001, CROSS_LINK_RATIO: 0.0}
     top = env.params_from_action(np.array([1.0, 1.0]))
     assert top["cutoff_hz"] == pytest.approx(20.0, rel=1e-12) and top[CROSS_LINK_RATIO] == 2.0
     middle = env.params_from_action(np.zeros(2))
-    assert middle["cutoff_hz"] == pytest.approx(math.sqrt(0.01 * 20.0), rel=1e-12)  # log scale
+    assert middle["cutoff_hz"] == pytest.approx(math.sqrt(0.001 * 20.0), rel=1e-12)  # log scale
     values = {"cutoff_hz": 0.37, CROSS_LINK_RATIO: 0.6}
     back = env.params_from_action(env.action_from_params(**values))
     assert back == pytest.approx(values, rel=1e-12)
@@ -187,7 +187,7 @@ def test_gain_mapping_round_trips_and_hits_the_ends():
     obs, info = env.reset(seed=0)
     assert info["params"]["cutoff_hz"] == pytest.approx(PAPER_K * math.sqrt(2.0) / (2.0 * math.pi), rel=1e-12)
     assert info["params"][CROSS_LINK_RATIO] == pytest.approx(math.sqrt(3.0) * PAPER_K_P / PAPER_K, rel=1e-12)
-    gains = env.split_observation(obs)["gains"]
+    gains = env.physical_observation()["gains"]
     np.testing.assert_allclose(gains, env.action_from_params(cutoff_hz=info["params"]["cutoff_hz"],
                                                              cross_link_ratio=info["params"][CROSS_LINK_RATIO]))
     assert (info["params"]["k"], info["params"]["k_p"]) == (PAPER_K, PAPER_K_P)
@@ -201,7 +201,7 @@ def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
     core = env.unwrapped
     standalone = make_estimator("biso", core.imu_rate_hz, declination_rad=core.sim.earth.declination_rad)
     rng = np.random.default_rng(0)
-    imu = core.split_observation(obs)["imu"]
+    imu = core.physical_observation()["imu"]
     standalone.update(imu[:, 0:3], imu[:, 3:6], imu[:, 6:9])  # the reset period, paper gains
     step = 0
     while True:
@@ -211,7 +211,7 @@ def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
             k, kp = gains_from_cutoff(values["cutoff_hz"])  # k = ω_n/√2, k_p = r·ω_n/√6
             standalone.set_params(k=k, k_p=values[CROSS_LINK_RATIO] * kp)
         obs, reward, _, truncated, info = env.step(action)
-        imu = core.split_observation(obs)["imu"]
+        imu = core.physical_observation()["imu"]
         q = standalone.update(imu[:, 0:3], imu[:, 3:6], imu[:, 6:9]).q_wb
         np.testing.assert_array_equal(info["q_wb_tuned"], q[-1])
         assert info["params"] == {**values, "k": k, "k_p": values[CROSS_LINK_RATIO] * kp}  # what the action set
@@ -374,3 +374,99 @@ def test_scripted_driver_completes_random_routes():
     for seed in range(3):
         result = run_route(random_route(seed, hills=1), seed=0, estimators=("biso",))
         assert result.completed and result.summary()["cross_track_rms_m"] < 0.5
+
+
+# --------------------------------------------------------------------------------------
+# Scripted baselines
+# --------------------------------------------------------------------------------------
+
+EVALUATION_SEEDS = range(1000, 1005)  # benchmarks/rl_baselines.py's
+
+
+def drive_episode(env, policy, seed):
+    obs, info = env.reset(seed=seed)
+    total = 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += reward
+        if terminated or truncated:
+            return total, info
+
+
+def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
+    """With the default dead-reckoned pose (the estimator's errors steer the car)."""
+    from biso_cosim.envs.baselines import PursuitDriver
+
+    env = gym.make("biso_cosim/Driving-v0")
+    policy = PursuitDriver(env)
+    for seed in EVALUATION_SEEDS:
+        total, info = drive_episode(env, policy, seed)
+        assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
+        assert total > 0.8 * env.unwrapped.route.path.length_m  # progress dominates: 387 m of road
+
+
+@pytest.mark.slow
+def test_pursuit_baseline_completes_every_evaluation_seed_of_random_routes():
+    from biso_cosim.envs.baselines import PursuitDriver
+
+    env = gym.make("biso_cosim/Driving-v0", route="random")
+    policy = PursuitDriver(env)
+    for seed in EVALUATION_SEEDS:
+        total, info = drive_episode(env, policy, seed)
+        assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
+
+
+def test_the_fed_back_estimate_lets_a_policy_beat_the_memoryless_attitude():
+    """A complementary filter that sees only the observation (its previous estimate, fed
+    back, and the step's samples) halves the error of the accelerometer+magnetometer attitude."""
+    from biso_cosim.envs.baselines import AccelMagAttitude, FeedbackFilter
+
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", episode_duration_s=20.0)
+    returns = {}
+    for name, policy in (("memoryless", AccelMagAttitude(env)), ("feedback", FeedbackFilter(env))):
+        total = 0.0
+        for seed in (1000, 1001):
+            obs, info = env.reset(seed=seed)
+            policy.reset()
+            np.testing.assert_array_equal(env.unwrapped.split_observation(obs)["estimate_q_wb"], [1.0, 0, 0, 0])
+            while True:
+                action = policy(obs)
+                obs, reward, terminated, truncated, info = env.step(action)
+                total += reward
+                fed_back = env.unwrapped.physical_observation()["estimate_q_wb"]
+                q = np.asarray(action, dtype=np.float64)
+                np.testing.assert_allclose(fed_back, q / np.linalg.norm(q) * np.sign(q[0]), atol=1e-12)
+                if terminated or truncated:
+                    break
+        returns[name] = total
+    assert returns["feedback"] > 0.6 * returns["memoryless"]  # (returns are negative: errors)
+
+
+def test_gain_oracle_scores_constant_gains_as_the_environment_does():
+    """The oracle's side-by-side copies score a constant action as the environment's
+    tuned copy does (the mean over the samples; the environment leaves out the reset's period)."""
+    from biso_cosim.envs.gain_oracle import episode_errors
+
+    env = gym.make("biso_cosim/GainTuning-v0", episode_duration_s=20.0)
+    actions = [np.array([-0.3, 0.0]), np.array([0.5, -0.5])]
+    errors = episode_errors(env, 1000, actions)
+    for action, error in zip(actions, errors):
+        env.reset(seed=1000)
+        step_errors = []
+        while True:
+            _, reward, _, truncated, info = env.step(action)
+            step_errors.append(-reward)
+            if truncated:
+                break
+        assert np.mean(step_errors) == pytest.approx(error, rel=0.02)
+
+
+@pytest.mark.slow
+def test_gain_oracle_lies_inside_the_range_and_beats_the_paper():
+    from biso_cosim.envs.gain_oracle import episode_errors, oracle_action
+
+    env = gym.make("biso_cosim/GainTuning-v0")
+    for seed in (1000, 1001, 1002):
+        best, error = oracle_action(env, seed)
+        assert -1.0 < best[0] < 1.0, seed  # f_c inside its range
+        assert error < episode_errors(env, seed, [env.unwrapped._initial_gains])[0]

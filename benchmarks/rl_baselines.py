@@ -1,0 +1,163 @@
+"""Trained baselines: PPO (and SAC) from Stable-Baselines3 on each environment for a fixed
+budget, against a random policy, the scripted information baseline and (GainTuning) the oracle.
+
+For each environment and algorithm: the learning curve (mean return of the training
+episodes finished in each tenth of the budget, from SB3's Monitor), then the final mean
+return over the evaluation seeds (deterministic policy) next to
+
+* random: uniform actions from the action space (seeded);
+* info baseline: AttitudeEstimation, the reference BISO in ``info`` (the return a policy
+  answering with it would get) and the memoryless accelerometer+magnetometer attitude;
+  GainTuning, the paper's gains as a constant action; Driving, ``PursuitDriver``;
+* GainTuning's oracle: the best constant gains of each episode (``gain_oracle``), and the
+  best single constant over the evaluation episodes (from the same grid).
+
+Default hyperparameters of SB3 (``MlpPolicy``), observations and rewards normalised by
+``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``,
+wall time) measured over ``--speed-steps`` steps each. Needs the extra ``rl``
+(``pip install torch==2.13.0`` first on this machine: the local CPU build):
+
+    python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
+    python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import biso_cosim.envs  # noqa: F401  (registers the ids)
+from biso_cosim.envs.baselines import AccelMagAttitude, PursuitDriver, paper_gains
+
+ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
+        "Driving": "biso_cosim/Driving-v0"}
+EVALUATION_SEED = 1000  # seeds 1000, 1001, ... (tests/test_envs_tasks.py's)
+
+
+def episode_return(env, policy, seed, reset=None):
+    obs, info = env.reset(seed=seed)
+    if reset is not None:
+        reset()
+    total, baseline = 0.0, 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += float(reward)
+        baseline -= float(info.get("baseline_error_rad", 0.0))
+        if terminated or truncated:
+            return total, baseline, info
+
+
+def baselines(name, env, seeds):
+    """Mean returns of the scripted policies over the seeds: {label: mean}."""
+    out = {}
+    rng = np.random.default_rng(0)
+    space = env.action_space
+    random_policy = lambda obs: rng.uniform(space.low, space.high).astype(np.float32)  # noqa: E731
+    runs = [episode_return(env, random_policy, s) for s in seeds]
+    out["random"] = np.mean([r[0] for r in runs])
+    if name == "AttitudeEstimation":
+        out["info baseline: BISO (reference in info)"] = np.mean([r[1] for r in runs])
+        am = AccelMagAttitude(env)
+        out["accel+mag attitude (memoryless)"] = np.mean([episode_return(env, am, s, am.reset)[0] for s in seeds])
+    elif name == "GainTuning":
+        from biso_cosim.envs.gain_oracle import episode_errors, oracle_action
+
+        paper = paper_gains(env)
+        out["info baseline: paper gains"] = np.mean([episode_return(env, lambda o: paper, s)[0] for s in seeds])
+        oracle, grid_errors = [], []
+        axis = np.linspace(-1.0, 1.0, 9)
+        grid = [np.array([a, b]) for a in axis for b in axis]
+        for s in seeds:
+            best, _ = oracle_action(env, s)
+            oracle.append(episode_return(env, lambda o: best, s)[0])
+            print(f"    oracle seed {s}: {env.unwrapped.params_from_action(best)}", flush=True)
+            grid_errors.append(episode_errors(env, s, grid))
+        out["oracle: best constant gains per episode"] = np.mean(oracle)
+        single = grid[int(np.argmin(np.mean(grid_errors, axis=0)))]
+        print(f"    best single constant: {env.unwrapped.params_from_action(single)}", flush=True)
+        out["best single constant (grid)"] = np.mean([episode_return(env, lambda o: single, s)[0] for s in seeds])
+    else:
+        driver = PursuitDriver(env)
+        returns = [episode_return(env, driver, s) for s in seeds]
+        out["info baseline: pursuit driver"] = np.mean([r[0] for r in returns])
+        out["  (finished)"] = f"{sum(r[2]['finished'] for r in returns)}/{len(seeds)}"
+    return out
+
+
+def train(name, algo, timesteps, seed, n_envs=1):
+    """A trained model, its VecNormalize and the learning curve [(steps, mean return, episodes)]."""
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
+
+    curve, returns = [], []
+    chunk = max(timesteps // 10, 1)
+
+    class Curve(BaseCallback):
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                if "episode" in info:
+                    returns.append(info["episode"]["r"])
+            if self.num_timesteps // chunk > len(curve):
+                curve.append((self.num_timesteps, float(np.mean(returns)) if returns else float("nan"), len(returns)))
+                returns.clear()
+            return True
+
+    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
+    vec = VecNormalize(vec, gamma=0.99)
+    model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu")
+    start = time.perf_counter()
+    model.learn(total_timesteps=timesteps, callback=Curve())
+    rate = model.num_timesteps / (time.perf_counter() - start)  # (PPO collects whole rollouts of 2048 steps)
+    vec.training = False
+    return model, vec, curve, rate
+
+
+def evaluate(model, vec, env, seeds):
+    policy = lambda obs: model.predict(vec.normalize_obs(obs[None]), deterministic=True)[0][0]  # noqa: E731
+    return float(np.mean([episode_return(env, policy, s)[0] for s in seeds]))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", nargs="+", default=list(ENVS), choices=list(ENVS))
+    parser.add_argument("--algos", nargs="+", default=["ppo"], choices=["ppo", "sac"])
+    parser.add_argument("--timesteps", type=int, default=500_000, help="training budget per environment and algorithm")
+    parser.add_argument("--seeds", type=int, default=5, help="evaluation episodes (seeds 1000, 1001, ...)")
+    parser.add_argument("--speed-steps", type=int, default=4096, help="steps of the steps/s measurement (0: none)")
+    parser.add_argument("--seed", type=int, default=0, help="training seed")
+    args = parser.parse_args()
+    if args.seeds < 1:
+        parser.error("--seeds must be >= 1")
+    seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
+    table = []
+    for name in args.envs:
+        env = gym.make(ENVS[name])
+        print(f"== {name}: {args.timesteps} steps per algorithm, evaluation seeds {seeds[0]}..{seeds[-1]}", flush=True)
+        if args.speed_steps:
+            for n in (1, 2):
+                _, vec, _, rate = train(name, "ppo", args.speed_steps, args.seed, n_envs=n)
+                vec.close()
+                print(f"  PPO training steps/s with {n} environment(s): {rate:.0f}", flush=True)
+        rows = baselines(name, env, seeds)
+        for algo in args.algos:
+            model, vec, curve, rate = train(name, algo, args.timesteps, args.seed)
+            print(f"  {algo.upper()} learning curve (steps: mean training return over the episodes since the last row):")
+            for steps, mean, count in curve:
+                print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")
+            rows[f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"] = evaluate(model, vec, env, seeds)
+        for label, value in rows.items():
+            shown = value if isinstance(value, str) else f"{value:.1f}"
+            print(f"  {label:<48} {shown:>10}", flush=True)
+            table.append((name, label, shown))
+    print("\n| environment | policy | mean return |\n|---|---|---|")
+    for name, label, shown in table:
+        print(f"| {name} | {label.strip()} | {shown} |")
+
+
+if __name__ == "__main__":
+    main()
