@@ -90,7 +90,7 @@ class DrivingEnv(CosimEnv, EzPickle):
     default, the worth of 10 m of road: the loss of the progress not made dominates it, so
     that driving on is worth more than its risk and standing still (return 0) is not the
     safest policy. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    about 330–370 on `figure8` with the dead-reckoned pose and completes every evaluation
+    about 345–375 on `figure8` with the dead-reckoned pose and completes every evaluation
     seed (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
