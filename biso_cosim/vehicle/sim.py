@@ -213,6 +213,13 @@ class VehicleSim:
         wheels = sd[ix.wheel_rates.start:ix.wheel_rates.stop]
         return axle, yaw, sd[ix.rear_axle_vel_b.start], sum(wheels) / len(wheels)
 
+    @property
+    def sensordata(self) -> np.ndarray:
+        """MuJoCo's sensordata now (``data.sensordata``, one array viewing the model's
+        buffer for the simulator's life, so a kernel may hold it): the columns ``index``
+        names (quaternion, rear axle, wheel rates, steering angle, ...)."""
+        return self._sensordata
+
     def drive(self) -> DriverCommand:
         """Ask the driver for the next control period's command from the current state, and
         apply it: one kernel from the sensors to the controls (``_measure``, the driver's
