@@ -220,8 +220,8 @@ class DrivingEnv(CosimEnv, EzPickle):
         a = self._action_array(action)
         vehicle = self._sim.vehicle
         space = self.action_space
-        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], vehicle._ctrl, vehicle._actuators,
-                 vehicle._wheel_rates, vehicle._drivetrain, vehicle.driver.state.array)
+        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], *vehicle.control_arrays,
+                 vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
             before = _drive_action(self._bounded_action(a), *apply)
