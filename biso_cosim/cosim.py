@@ -343,10 +343,11 @@ class CoSimulation:
 
     def odometry_mps(self, truth: Truth) -> np.ndarray:
         """The wheel-odometry speed (m/s) at each row of ``truth``, as the estimators that
-        take ``speed_mps`` receive it in the loop. Wheel odometry as an ABS controller forms it, from the wheels that are not driven
-        (driven wheels spin under throttle): the mean spin rate of the front wheels times the
-        wheel radius, times the cosine of the steering angle, is the speed of the rear axle's
-        centre in the bicycle model (negative in reverse)."""
+        take ``speed_mps`` receive it in the loop. Wheel odometry as an ABS controller forms
+        it, from the wheels that are not driven (driven wheels spin under throttle): the mean
+        spin rate of the front wheels times the wheel radius, times the cosine of the
+        steering angle, is the speed of the rear axle's centre in the bicycle model
+        (negative in reverse)."""
         out = np.empty(len(truth))
         _wheel_odometry(truth.packed, self.vehicle.index.wheel_radius_m, out)
         return out

@@ -257,9 +257,9 @@ class DrivingEnv(CosimEnv, EzPickle):
         gnss = self._gnss.values if self._gnss is not None else _NO_GNSS
         self._nav_index = _driving_view(
             observation, self._window.values, gnss, self._q_est, self._newest_row, vehicle.sensordata,
-            vehicle.index.rear_axle_pos.start, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose,
-            self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets,
-            vehicle.driver.state.array, values)
+            vehicle.index.rear_axle_pos.start, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m,
+            self._pose, self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index,
+            self._preview_offsets, vehicle.driver.state.array, values)
         tilt, x, y, yaw, attitude_error, speed_mps, s_m, cross_track_m, length_m = values.tolist()
         pose = self._pose
         nav_x, nav_y, nav_yaw = pose.tolist()
