@@ -341,11 +341,13 @@ class CoSimulation:
         ix = self.vehicle.index
         return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b)}
 
-    def _odometry_mps(self, truth: Truth) -> np.ndarray:
-        """Wheel odometry as an ABS controller forms it, from the wheels that are not driven
-        (driven wheels spin under throttle): the mean spin rate of the front wheels times the
-        wheel radius, times the cosine of the steering angle, is the speed of the rear axle's
-        centre in the bicycle model (negative in reverse)."""
+    def odometry_mps(self, truth: Truth) -> np.ndarray:
+        """The wheel-odometry speed (m/s) at each row of ``truth``, as the estimators that
+        take ``speed_mps`` receive it in the loop. Wheel odometry as an ABS controller forms
+        it, from the wheels that are not driven (driven wheels spin under throttle): the mean
+        spin rate of the front wheels times the wheel radius, times the cosine of the
+        steering angle, is the speed of the rear axle's centre in the bicycle model
+        (negative in reverse)."""
         out = np.empty(len(truth))
         _wheel_odometry(truth.packed, self.vehicle.index.wheel_radius_m, out)
         return out
@@ -596,7 +598,7 @@ class CoSimulation:
         k = len(samples.t_s)
         flags = samples.flags.astype(np.int64) if imu_flags is None else imu_flags
         if self._wants_odometry and odometry is None:
-            odometry = self._odometry_mps(at_samples)
+            odometry = self.odometry_mps(at_samples)
         speed = odometry if self._wants_odometry else np.empty(0)
         view = LoopSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8), flags[:k],
                            speed[:k] if speed.shape[0] else speed, at_samples.packed)
@@ -792,7 +794,7 @@ class CoSimulation:
             extra = {}
             if "speed_mps" in inputs:
                 if odometry is None:
-                    odometry = self._odometry_mps(at_samples)
+                    odometry = self.odometry_mps(at_samples)
                 extra["speed_mps"] = odometry
             if "gnss" in inputs:
                 extra["gnss"] = fixes

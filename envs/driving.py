@@ -242,8 +242,8 @@ class DrivingEnv(CosimEnv, EzPickle):
         a = self._action_array(action)
         vehicle = self._sim.vehicle
         space = self.action_space
-        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], vehicle._ctrl, vehicle._actuators,
-                 vehicle._wheel_rates, vehicle._drivetrain, vehicle.driver.state.array)
+        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], *vehicle.control_arrays,
+                 vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
             before = _drive_action(self._bounded_action(a), *apply)
@@ -264,7 +264,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         rear wheels slip under torque): in the bicycle model the rear axle moves at the front
         wheels' speed times cos(steering angle)."""
         vehicle = self._sim.vehicle
-        return PeriodWork(_driving_work, (self._window.values, vehicle._sensordata, vehicle.index.steering_angle.start,
+        return PeriodWork(_driving_work, (self._window.values, vehicle.sensordata, vehicle.index.steering_angle.start,
                                           0.5 * vehicle.index.wheel_radius_m, 1.0 / self.imu_rate_hz, self._pose,
                                           self._q_est), ("estimator",))
 
@@ -278,10 +278,10 @@ class DrivingEnv(CosimEnv, EzPickle):
         values = np.empty(9)
         gnss = self._gnss.values if self._gnss is not None else _NO_GNSS
         self._nav_index = _driving_view(
-            observation, self._window.values, gnss, self._q_est, self._newest_row, vehicle._sensordata,
-            vehicle._axle_x, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m, self._pose,
-            self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index, self._preview_offsets,
-            vehicle.driver.state.array, values)
+            observation, self._window.values, gnss, self._q_est, self._newest_row, vehicle.sensordata,
+            vehicle.index.rear_axle_pos.start, vehicle.index.steering_angle.start, vehicle.index.wheel_radius_m,
+            self._pose, self.pose_source == "truth", path.x_m, path.y_m, path.s_m, self._nav_index,
+            self._preview_offsets, vehicle.driver.state.array, values)
         observation = self._public(observation)
         tilt, x, y, yaw, attitude_error, speed_mps, s_m, cross_track_m, length_m = values.tolist()
         pose = self._pose

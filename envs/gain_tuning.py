@@ -284,7 +284,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         # The coefficients the actions' gains are written into while they stay these: BISO's
         # closed form tuned by f_c > 0 and r alone (valid at the box's corners, so k > 0 and
         # k_p >= 0 inside; any other tuned parameter takes set_params)
-        closed = self._closed_tuning and tuned._is_closed_form()
+        closed = self._closed_tuning and tuned.closed_form
         self._closed_version = tuned.arrays_version if closed else None
         self._gains[:] = self._initial_gains
         self._first_period()
@@ -295,7 +295,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def step(self, action: Any):
         self._require_running()
         tuned = self._sim.estimators["tuned"]
-        if tuned.arrays_version == self._closed_version and tuned.closed_form:  # (see reset)
+        # (see reset; ``sim.fast_path = False`` takes the general path for the action too)
+        if self._sim.fast_path and tuned.arrays_version == self._closed_version and tuned.closed_form:
             self._tune_closed(action, tuned)
         else:
             a = self._check_action(action)

@@ -4,6 +4,7 @@ library-free series), in Python. The kernel keeps the state in registers, skips 
 cannot change a rounded sum and writes the offset covariance as a triangle; the results must be
 the same numbers, bit for bit."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -500,3 +501,50 @@ def test_input_checks_without_a_separate_finiteness_test(bad):
         want = _checks(args[0], args[1], args[2], held, 0, math.inf, math.inf)
         got = _input_checks(*args[0], *args[1], *args[2], *held, 0, math.inf, math.inf)
         assert got[0] == want[0] and tuple(got[1:4]) == tuple(want[1]) and got[4] == want[2] and got[6] == want[4]
+
+
+@pytest.mark.parametrize("fs_hz", [100.0, 333.0, 1000.0])
+def test_jitted_derivation_equals_the_python_reference_bit_for_bit(fs_hz):
+    """``biso_plus_derive`` (numba, ``retune``'s kernel) writes ``biso_plus_coefficients``'
+    numbers bit for bit, over random records (every real parameter scaled at random, both
+    low-pass orders, the optional fields set or None); an invalid value writes nothing and
+    names its index."""
+    rng = np.random.default_rng(int(fs_hz))
+    base = bp.BisoPlusParams()
+    real = [name for name in bp._V_INDEX if name != "declination_rad"]
+    for trial in range(40):
+        changes = {name: getattr(base, name) * float(rng.uniform(0.2, 5.0)) for name in real}
+        changes["tau_acc_s"] = 0.0 if trial == 0 else changes["tau_acc_s"]  # (no low-pass)
+        changes["mag_dip_tol_rad"] = float(rng.uniform(0.01, 4.0))  # (both sides of π: the cosine or never)
+        changes.update(declination_rad=float(rng.uniform(-0.5, 0.5)), tilt_lp_order=int(rng.integers(1, 3)),
+                       accel_gate_free=None if trial % 2 else float(rng.uniform(0.1, 1.0)),
+                       field_norm_ut=None if trial % 3 else float(rng.uniform(20.0, 60.0)),
+                       dip_rad=None if trial % 4 else float(rng.uniform(-1.2, 1.2)),
+                       estimate_mag_offset=bool(trial % 5), speed_point_b_m=tuple(rng.normal(0.0, 1.0, 3)),
+                       gyro_range_rad_s=None if trial % 2 else 34.9, accel_range_mps2=None if trial % 3 else 78.4)
+        p = dataclasses.replace(base, **changes)
+        reference = bp.biso_plus_coefficients(p, fs_hz)
+        derived = np.full_like(reference, 7.0)
+        assert bp.biso_plus_derive(bp.biso_plus_values(p, fs_hz), derived) == -1
+        assert derived.tobytes() == reference.tobytes(), trial
+    values = bp.biso_plus_values(base, fs_hz)
+    for name, bad in (("k_tilt", -1.0), ("accel_gate", 0.0), ("declination_rad", math.nan), ("tau_field_s", math.inf)):
+        v, c = values.copy(), np.full(bp._C_SIZE, 7.0)
+        v[bp._V_INDEX[name]] = bad
+        assert bp.biso_plus_derive(v, c) == bp._V_INDEX[name] and np.all(c == 7.0)
+
+
+def test_retune_by_the_kernel_is_set_params_and_refuses_as_it():
+    """``retune`` of real parameters given as floats goes by the kernel: the record and the
+    coefficients of ``set_params``; a bad value raises set_params' message and changes nothing."""
+    a, b = make_estimator("biso_plus", 500.0), make_estimator("biso_plus", 500.0)
+    for changes in ({"k_tilt": 3.0, "k_heading": 0.2, "tau_acc_s": 2.0}, {"declination_rad": 0.1}, {"k_tilt": 0.5}):
+        a.retune(**changes)
+        b.set_params(**changes)
+        assert a.params == b.params and a.coefficients.tobytes() == b.coefficients.tobytes()
+    params, coef = a.params, a.coefficients
+    with pytest.raises(ValueError, match="k_tilt must be >= 0.0, got -1.0"):
+        a.retune(k_tilt=-1.0, k_heading=0.3)
+    with pytest.raises(ValueError, match="accel_gate must be > 0.0"):
+        a.retune(accel_gate=0.0)
+    assert a.params is params and a.coefficients.tobytes() == coef.tobytes()

@@ -230,24 +230,31 @@ def test_set_state_never_mixes_histories_in_the_log():
     assert np.all(np.diff(run.t_s) > 0) and run.t_s[0] == pytest.approx(1.0)  # the sample latched at 1 s
 
 
-def test_an_interrupted_run_continues_in_step():
-    class Stop(Exception):
-        pass
+def test_an_interrupted_run_continues_in_step(monkeypatch):
+    """A real SIGINT in the middle of a block of periods (while the progress bar draws after
+    the 50th period, the first of the eighth block of seven): run() raises KeyboardInterrupt
+    with the sensor and the estimators caught up with the physics, and a second run() goes on
+    to the same samples as an uninterrupted run."""
+    import signal
+
+    import tqdm
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    draw = tqdm.tqdm.update
+
+    def update_then_interrupt(bar, n=1):
+        signal.raise_signal(signal.SIGINT)
+        return draw(bar, n)
 
     sim = CoSimulation("figure8", duration_s=6.0, seed=0, estimators=["poisson"])
-    original = sim._drive
-    calls = {"n": 0}
-
-    def drive_then_interrupt(command=None):
-        calls["n"] += 1
-        if calls["n"] == 57:  # in the middle of the sixth block of ten periods
-            raise Stop
-        return original(command)
-
-    sim._drive = drive_then_interrupt
-    with pytest.raises(Stop):
-        sim.run()
-    sim._drive = original
+    try:
+        monkeypatch.setattr(tqdm.tqdm, "update", update_then_interrupt)
+        with pytest.raises(KeyboardInterrupt):
+            sim.run(progress=True, block_periods=7)
+        monkeypatch.setattr(tqdm.tqdm, "update", draw)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert sim.result().truth.t_s[-1] == pytest.approx(50 / 50.0, abs=0.02)  # the 50 periods it drove
     run = sim.run()
     np.testing.assert_allclose(run.truth.t_s, run.imu.t_s, atol=1e-12)
     reference = CoSimulation("figure8", duration_s=6.0, seed=0, estimators=["poisson"]).run()

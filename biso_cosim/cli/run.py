@@ -214,7 +214,7 @@ def _write_outputs(sim, result, summary: dict, out: Path, args: argparse.Namespa
     try:
         if not args.no_log:  # the log before the summary that counts its rows
             takes_speed = any("speed_mps" in getattr(e, "inputs", ()) for e in sim.estimators.values())
-            odometry = sim._odometry_mps(result.truth) if takes_speed else None  # what the run fed them
+            odometry = sim.odometry_mps(result.truth) if takes_speed else None  # what the run fed them
             written.append(write_run_log(result, out / "log.csv", odometry_mps=odometry))
         written.append(write_text_atomic(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n"))
         written.append(plot_run(result, out / "attitude.png"))

@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, NamedTuple
+from typing import Any, Callable, ClassVar, Mapping, NamedTuple
 
 import numpy as np
 
@@ -336,6 +336,7 @@ class Estimator:
         self._q0: np.ndarray | None = None
         self._state = self._initial_state(None)
         self._prechecked = None  # (parameter record, input requirements) checked: see _update_prechecked
+        self._retune_record: tuple[Any, np.ndarray | None] = (None, None)  # (record, its retune_values)
         self.arrays_version = 0
         """Counts the replacements of the coefficient and state arrays (``loop_arrays``)."""
 
@@ -362,14 +363,45 @@ class Estimator:
         self._params, self._coef = params, coef
         self.arrays_version += 1
 
+    retune_kernel: Any = None
+    """Optional, for ``retune``: a jitted ``kernel(values, coef) -> int`` that derives the
+    coefficients into ``coef`` in place from ``values`` (``retune_values``' vector of the
+    parameter record with the changes written at ``retune_index``), returning -1; or, when
+    a value is invalid, writes nothing and returns the index of the first invalid one.
+    Declared in the estimator's own module, next to its Python derivation (the reference)."""
+    retune_index: Mapping[str, int] = {}
+    """With ``retune_kernel``: the real parameters it derives from, and their index in ``values``."""
+
+    def retune_values(self, params: Any) -> np.ndarray:
+        """With ``retune_kernel``: the vector of ``params`` (a record ``_coefficients`` accepted) it reads."""
+        raise NotImplementedError(f"{type(self).__name__} declares no retune_kernel")
+
     def retune(self, **changes: Any) -> None:
         """Change parameters while the estimator runs (a tuning loop's change, each step):
         ``set_params``' result, the parameter record, the coefficients and the checks
         consistent, the state untouched. An estimator with a cheaper way for some changes
-        takes it here (BISO: equal gains of the closed form, in place). The new
+        takes it here (BISO: equal gains of the closed form, in place), and an estimator
+        that offers a jitted derivation (``retune_kernel``) has it derive the coefficients
+        in place for changes of the real parameters it names (``retune_index``) given as
+        floats (biso_plus: every real parameter; the same numbers as ``set_params``, tested). The new
         coefficients are written into the coefficient array in place when they have its
         shape (a loop that holds the array goes on with it); otherwise the array is
         replaced and ``arrays_version`` counts up."""
+        kernel = type(self).retune_kernel  # (a dispatcher binds as a method through an instance)
+        if (kernel is not None and changes.keys() <= self.retune_index.keys()
+                and all(type(value) is float for value in changes.values())):
+            held, values = self._retune_record
+            values = (self.retune_values(self._params) if held is not self._params else values).copy()
+            index = self.retune_index
+            for name, value in changes.items():
+                values[index[name]] = value
+            if kernel(values, self._coef) < 0:  # derived in place (else nothing written: the checks below raise)
+                # the record's checks on these fields are the kernel's: a frozen dataclass copied with the
+                # changes set in its __dict__ (dataclasses.replace costs more than the whole derivation)
+                params = object.__new__(type(self._params))
+                params.__dict__.update(self._params.__dict__, **changes)
+                self._params, self._retune_record = params, (params, values)
+                return
         params = self._replace_params(**changes)
         coef = self._coefficients(params, self.fs_hz)
         if coef.shape == self._coef.shape and coef.dtype == self._coef.dtype:

@@ -784,16 +784,11 @@ class BisoEstimator(Estimator):
                 return True
         return False
 
-    def _is_closed_form(self) -> bool:
-        """Whether the correction is the closed form (pattern 12, k > 0): equal gains then
-        change in place (``retune``)."""
-        return bool(self._coef[_C_MODE] == MODE_CLOSED)
-
     @property
     def closed_form(self) -> bool:
         """Whether the correction is the closed form (pattern 12, k > 0), whose equal gains
         ``retune`` changes in place."""
-        return self._is_closed_form()
+        return bool(self._coef[_C_MODE] == MODE_CLOSED)
 
     def _initial_state(self, q0: np.ndarray | None) -> np.ndarray:
         return biso_initial_state(q0)

@@ -296,19 +296,152 @@ def _kalman_noise(sigma: float, v: float) -> float:
     return p * p / v + p
 
 
+_NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "bias_limit_rad_s",
+                 "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
+                 "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
+                 "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s")
+"""The real parameters that must be finite and >= 0."""
+_POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
+             "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
+             "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s",
+             "mag_heading_noise_ut")
+"""The real parameters that must be finite and > 0."""
+
+# The parameter record as the jitted derivation reads it (``biso_plus_values``): the real
+# parameters above, the declination, then what the record's other fields give (None as NaN,
+# or -1 for the field norm, as in the coefficients), and the sample rate.
+_V_INDEX = {name: i for i, name in enumerate((*_NON_NEGATIVE, *_POSITIVE, "declination_rad"))}
+_V_N_NONNEG, _V_N_POS = len(_NON_NEGATIVE), len(_POSITIVE)
+_V_DECL = len(_V_INDEX) - 1
+_V_ORDER, _V_GATE_FREE, _V_BNORM, _V_DIP, _V_OFFSET = range(_V_DECL + 1, _V_DECL + 6)
+_V_RV = _V_DECL + 6
+_V_GRANGE, _V_ARANGE, _V_FS = _V_RV + 3, _V_RV + 4, _V_RV + 5
+_V_SIZE = _V_FS + 1
+_V_INDEX_TAU_ACC = _V_INDEX["tau_acc_s"]
+_V_TAU_ACCV = _V_INDEX["tau_acc_speed_s"]
+_V_KT = _V_INDEX["k_tilt"]
+_V_KH = _V_INDEX["k_heading"]
+_V_KP = _V_INDEX["k_p"]
+_V_GATE = _V_INDEX["accel_gate"]
+_V_BS_INIT = _V_INDEX["bias_sigma_init_rad_s"]
+_V_B_FORGET = _V_INDEX["bias_forgetting_s"]
+_V_BS_MOTION = _V_INDEX["bias_sigma_motion_rad_s"]
+_V_B_HEAD = _V_INDEX["bias_heading_factor"]
+_V_BS_REST = _V_INDEX["bias_sigma_rest_rad_s"]
+_V_BLIM = _V_INDEX["bias_limit_rad_s"]
+_V_REST_T = _V_INDEX["rest_time_s"]
+_V_REST_TAU = _V_INDEX["rest_filter_tau_s"]
+_V_REST_W = _V_INDEX["rest_gyro_rad_s"]
+_V_REST_A = _V_INDEX["rest_accel_mps2"]
+_V_REST_V = _V_INDEX["rest_speed_mps"]
+_V_BTOL = _V_INDEX["mag_norm_tol"]
+_V_DTOL = _V_INDEX["mag_dip_tol_rad"]
+_V_REJ = _V_INDEX["mag_reject_max_s"]
+_V_TAU_FIELD = _V_INDEX["tau_field_s"]
+_V_OFF_INTERVAL = _V_INDEX["mag_offset_interval_s"]
+_V_OFF_SIGMA = _V_INDEX["mag_offset_sigma_ut"]
+_V_TAU_OFF = _V_INDEX["tau_mag_offset_s"]
+_V_MAG_NOISE = _V_INDEX["mag_noise_ut"]
+_V_OFF_BIAS = _V_INDEX["mag_offset_bias_sigma_rad_s"]
+_V_TAU_SPEED = _V_INDEX["tau_speed_s"]
+_V_G = _V_INDEX["gravity_mps2"]
+_V_HEAD_NOISE = _V_INDEX["mag_heading_noise_ut"]
+_V_KAPPA = _V_INDEX["mag_disturbance_gain"]
+_V_TAU_DIST = _V_INDEX["tau_mag_disturbance_s"]
+_V_SKEW = _V_INDEX["mag_time_skew_s"]
+
+
+_alpha_jit = jit(inline="always")(_alpha)
+_butterworth2_jit = jit(inline="always")(_butterworth2)
+_kalman_noise_jit = jit(inline="always")(_kalman_noise)
+
+
+def biso_plus_values(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
+    """The parameter record ``p`` (one ``biso_plus_coefficients`` accepted) as the vector
+    ``biso_plus_derive`` reads."""
+    v = np.empty(_V_SIZE)
+    for name, i in _V_INDEX.items():
+        v[i] = float(getattr(p, name))
+    v[_V_ORDER] = float(p.tilt_lp_order)
+    v[_V_GATE_FREE] = np.nan if p.accel_gate_free is None else float(p.accel_gate_free)
+    v[_V_BNORM] = -1.0 if p.field_norm_ut is None else float(p.field_norm_ut)
+    v[_V_DIP] = np.nan if p.dip_rad is None else float(p.dip_rad)
+    v[_V_OFFSET] = float(bool(p.estimate_mag_offset))
+    v[_V_RV:_V_RV + 3] = np.asarray(p.speed_point_b_m, dtype=np.float64)
+    v[_V_GRANGE], v[_V_ARANGE] = saturation_limits(p)
+    v[_V_FS] = fs_hz
+    return v
+
+
+@jit(error_model="numpy")
+def biso_plus_derive(v, c):
+    """``biso_plus_coefficients`` in numba, from the vector of ``biso_plus_values``: the
+    coefficients written into ``c`` (the same numbers bit for bit, tested), or, when a real
+    parameter is not finite or out of its bounds, nothing written and its index in ``v``
+    returned (-1: written). ``BisoPlusEstimator.retune``'s kernel (``Estimator.retune_kernel``)."""
+    for i in range(_V_DECL + 1):
+        x = v[i]
+        if not math.isfinite(x) or (i < _V_N_NONNEG and x < 0.0) or (_V_N_NONNEG <= i < _V_DECL and x <= 0.0):
+            return i
+    fs_hz = v[_V_FS]
+    h = 1.0 / fs_hz
+    # squares as CPython computes x ** 2 (libm's pow): numba turns a constant exponent into
+    # x * x, which can differ in the last bit; an exponent known only at run time stays pow
+    two = 2.0 + 0.0 * fs_hz
+    tau_acc = v[_V_INDEX_TAU_ACC]
+    c[:] = 0.0
+    c[_C_H] = h
+    c[_C_A_ACC], c[_C_A_ACCV] = _alpha_jit(h, tau_acc), _alpha_jit(h, v[_V_TAU_ACCV])
+    c[_C_KT], c[_C_KH], c[_C_KP], c[_C_GATE] = v[_V_KT], v[_V_KH], v[_V_KP], v[_V_GATE]
+    c[_C_T0] = max(tau_acc, h)
+    c[_C_BP0] = v[_V_BS_INIT] ** two
+    c[_C_BV] = (0.1 * DEG) ** two * h / v[_V_B_FORGET]
+    c[_C_BWM] = _kalman_noise_jit(v[_V_BS_MOTION], c[_C_BV])
+    c[_C_BWV] = c[_C_BWM] / max(v[_V_B_HEAD], 1e-10)
+    c[_C_BWR] = _kalman_noise_jit(v[_V_BS_REST], c[_C_BV])
+    c[_C_BLIM] = v[_V_BLIM]
+    c[_C_REST_N], c[_C_A_REST] = v[_V_REST_T], _alpha_jit(h, v[_V_REST_TAU])
+    c[_C_REST_W], c[_C_REST_A], c[_C_REST_V] = v[_V_REST_W], v[_V_REST_A], v[_V_REST_V]
+    c[_C_BTOL], c[_C_DTOL], c[_C_REJ_N] = v[_V_BTOL], v[_V_DTOL], v[_V_REJ]
+    c[_C_A_FIELD] = _alpha_jit(h, v[_V_TAU_FIELD])
+    c[_C_BNORM] = v[_V_BNORM]
+    c[_C_DIP] = v[_V_DIP]
+    c[_C_OFFSET] = v[_V_OFFSET]
+    c[_C_OFF_N] = max(1, int(round(v[_V_OFF_INTERVAL] * fs_hz)))
+    dt_off = c[_C_OFF_N] * h
+    c[_C_Q_OFFSET] = v[_V_OFF_SIGMA] ** two / v[_V_TAU_OFF] * dt_off
+    c[_C_Q_FIELD] = _FIELD_WALK_UT2_PER_S * dt_off
+    c[_C_R_MAG] = v[_V_MAG_NOISE] ** two
+    c[_C_OFF_BIAS2] = v[_V_OFF_BIAS] ** two
+    decl = v[_V_DECL]
+    c[_C_DECL], c[_C_CDH], c[_C_SDH] = decl, math.cos(0.5 * decl), math.sin(0.5 * decl)
+    c[_C_RV], c[_C_RV + 1], c[_C_RV + 2] = v[_V_RV], v[_V_RV + 1], v[_V_RV + 2]
+    c[_C_A_SPEED] = _alpha_jit(h, v[_V_TAU_SPEED])
+    c[_C_G] = v[_V_G]
+    c[_C_GRANGE], c[_C_ARANGE] = v[_V_GRANGE], v[_V_ARANGE]
+    c[_C_FS] = fs_hz
+    c[_C_INV_GATE_G] = 1.0 / (c[_C_G] * c[_C_GATE])
+    if not math.isnan(v[_V_DIP]):
+        c[_C_DIP_C], c[_C_DIP_S] = math.cos(c[_C_DIP]), math.sin(c[_C_DIP])
+    c[_C_COS_DTOL] = math.cos(c[_C_DTOL]) if c[_C_DTOL] < math.pi else -2.0
+    if v[_V_ORDER] == 2.0 and tau_acc > 0.0:
+        b0, b1, b2, a1, a2 = _butterworth2_jit(h, tau_acc)
+        c[_C_BW], c[_C_BW + 1], c[_C_BW + 2], c[_C_BW + 3], c[_C_BW + 4] = b0, b1, b2, a1, a2
+    c[_C_INV_GATE_FREE] = 0.0 if math.isnan(v[_V_GATE_FREE]) else 1.0 / (c[_C_G] * v[_V_GATE_FREE])
+    c[_C_R_HEAD] = v[_V_HEAD_NOISE] ** two
+    c[_C_KAPPA] = v[_V_KAPPA]
+    c[_C_A_DIST] = _alpha_jit(h, v[_V_TAU_DIST])
+    c[_C_TAU_M2] = v[_V_SKEW] ** two
+    return -1
+
+
 def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     """Validate ``p`` and derive the kernel's coefficients (raises ValueError / TypeError)."""
     h = 1.0 / fs_hz
     v = {}
-    for name in ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "bias_limit_rad_s",
-                 "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
-                 "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
-                 "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s"):
+    for name in _NON_NEGATIVE:
         v[name] = check_finite(name, getattr(p, name), low=0.0)
-    for name in ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
-                 "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
-                 "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s",
-                 "mag_heading_noise_ut"):
+    for name in _POSITIVE:
         v[name] = check_finite(name, getattr(p, name), low=0.0, low_open=True)
     if not isinstance(p.estimate_mag_offset, (bool, np.bool_)):
         raise TypeError(f"estimate_mag_offset must be True or False, got {p.estimate_mag_offset!r}")
@@ -948,6 +1081,11 @@ class BisoPlusEstimator(Estimator):
     inputs = ("speed_mps", "imu_flags")
     estimates_bias = True
     loop_kernel = _biso_plus_loop
+    retune_kernel = biso_plus_derive
+    retune_index = _V_INDEX
+
+    def retune_values(self, params: BisoPlusParams) -> np.ndarray:
+        return biso_plus_values(params, self.fs_hz)
 
     def _coefficients(self, params: BisoPlusParams, fs_hz: float) -> np.ndarray:
         return biso_plus_coefficients(params, fs_hz)

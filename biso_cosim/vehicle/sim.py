@@ -9,6 +9,7 @@ a chunk is the truth at ``t0 + k·dt``, where ``t0`` was the simulation time bef
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -21,7 +22,20 @@ from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.drivetrain import AIR_DENSITY_KG_M3, DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
 
-__all__ = ["Truth", "VehicleSim"]
+__all__ = ["Truth", "VehicleSim", "ControlArrays"]
+
+
+class ControlArrays(NamedTuple):
+    """What a kernel needs to write the controls as ``VehicleSim.apply`` does
+    (``_apply_controls``): MuJoCo's ``ctrl``, the actuator indices (steering, drive,
+    resistance, four brakes), the wheel spin rates (a view of sensordata, rad/s) and the
+    drivetrain's coefficients. The same arrays for the simulator's life."""
+
+    ctrl: np.ndarray
+    actuators: np.ndarray
+    wheel_rates: np.ndarray
+    drivetrain: np.ndarray
+
 
 # Before time zero the car settles on its suspension with the brakes on for this long, so
 # that the first samples show a car at rest rather than contacts finding their depth.
@@ -156,6 +170,7 @@ class VehicleSim:
         self._sensor_layout = np.array([ix.quat.start, ix.rear_axle_pos.start, ix.rear_axle_vel_b.start,
                                         ix.wheel_rates.start, ix.wheel_rates.stop - ix.wheel_rates.start], dtype=np.int64)
         self._axle_x = int(ix.rear_axle_pos.start)
+        self._controls = ControlArrays(self._ctrl, self._actuators, self._wheel_rates, self._drivetrain)
         # sensordata columns of Truth's columns 1..22, in order
         self._settled: tuple[np.ndarray, np.ndarray] | None = None
         self._gather = np.r_[np.arange(ix.gyro.start, ix.gyro.stop), np.arange(ix.accel.start, ix.accel.stop),
@@ -212,6 +227,18 @@ class VehicleSim:
         axle = sd[ix.rear_axle_pos.start:ix.rear_axle_pos.stop]
         wheels = sd[ix.wheel_rates.start:ix.wheel_rates.stop]
         return axle, yaw, sd[ix.rear_axle_vel_b.start], sum(wheels) / len(wheels)
+
+    @property
+    def control_arrays(self) -> ControlArrays:
+        """The arrays a kernel writes the controls with, as ``apply`` does (``ControlArrays``)."""
+        return self._controls
+
+    @property
+    def sensordata(self) -> np.ndarray:
+        """MuJoCo's sensordata now (``data.sensordata``, one array viewing the model's
+        buffer for the simulator's life, so a kernel may hold it): the columns ``index``
+        names (quaternion, rear axle, wheel rates, steering angle, ...)."""
+        return self._sensordata
 
     def drive(self) -> DriverCommand:
         """Ask the driver for the next control period's command from the current state, and
