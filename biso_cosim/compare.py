@@ -33,8 +33,8 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
+from biso_cosim import peers
 from biso_cosim.estimators import make_estimator
-from biso_cosim.frames import quat_from_euler, quat_multiply
 from biso_cosim.metrics import ANGLES, angle_errors_deg
 from biso_cosim.output import write_text_atomic
 
@@ -128,46 +128,13 @@ def _ours(name: str, use_speed: bool = False, **fixed: Any) -> Callable[[Dataset
     return run
 
 
-def _magnetic_to_true(q_mag: np.ndarray, declination_rad: float) -> np.ndarray:
-    """Peers' attitude relative to magnetic north → true north (rotate the world by −D about Up)."""
-    qz = quat_from_euler(0.0, 0.0, -declination_rad)
-    return quat_multiply(np.broadcast_to(qz, q_mag.shape).copy(), q_mag)
-
-
 def _vqf(d: Dataset) -> np.ndarray:
-    import vqf
-
-    est = vqf.VQF(1.0 / d.fs_hz)
-    out = est.updateBatch(*(np.ascontiguousarray(a, dtype=np.float64) for a in (d.gyro_b, d.accel_b, d.mag_b)))
-    return _magnetic_to_true(out["quat9D"], d.declination_rad)
+    return peers.vqf(d.gyro_b, d.accel_b, d.mag_b, d.fs_hz, d.declination_rad)
 
 
 def _imufusion(d: Dataset) -> np.ndarray:
-    import imufusion
-
-    fs = d.fs_hz
-    settings = imufusion.AhrsSettings()
-    settings.convention = imufusion.CONVENTION_ENU
-    settings.gain = 0.5
-    settings.gyroscope_range = math.degrees(d.gyro_range_rad_s or math.radians(2000.0))
-    settings.acceleration_rejection = 10.0
-    settings.magnetic_rejection = 10.0
-    settings.rejection_timeout = int(5 * fs)
-    settings.sample_rate = fs
-    ahrs = imufusion.Ahrs()
-    ahrs.set_settings(settings)
-    ahrs.set_sample_period(1.0 / fs)
-    bias_settings = imufusion.BiasSettings()
-    bias_settings.sample_rate = fs
-    offset = imufusion.Bias()
-    offset.set_settings(bias_settings)
-    gyro_deg = np.degrees(d.gyro_b)
-    accel_g = d.accel_b / 9.80665
-    out = np.empty((len(d.t_s), 4))
-    for i in range(len(d.t_s)):  # the Python API has no batch call
-        ahrs.update(offset.update(gyro_deg[i]), accel_g[i], d.mag_b[i])
-        out[i] = ahrs.get_quaternion()
-    return _magnetic_to_true(out, d.declination_rad)
+    return peers.imufusion(d.gyro_b, d.accel_b, d.mag_b, d.fs_hz, d.declination_rad,
+                           gyroscope_range=math.degrees(d.gyro_range_rad_s or math.radians(2000.0)))
 
 
 METHODS: dict[str, Callable[[Dataset], np.ndarray]] = {

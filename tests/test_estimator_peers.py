@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from biso_cosim import motions as mo
-from biso_cosim.compare import Dataset, _imufusion, _magnetic_to_true, _vqf
+from biso_cosim.compare import Dataset, _imufusion, _vqf
+from biso_cosim.peers import magnetic_to_true
 from biso_cosim.frames import quat_from_euler
 from biso_cosim.metrics import angle_errors_deg
 
@@ -55,7 +56,7 @@ def test_peer_heading_is_turned_from_magnetic_to_true_north(peer):
 
 def test_magnetic_to_true_turns_the_world_about_up():
     q_mag = quat_from_euler(0.1, -0.2, 0.3)[None]
-    q_true = _magnetic_to_true(q_mag, DECL)
+    q_true = magnetic_to_true(q_mag, DECL)
     e = angle_errors_deg(q_true, q_mag)
     assert e["roll"][0] == pytest.approx(0.0, abs=1e-9) and e["pitch"][0] == pytest.approx(0.0, abs=1e-9)
     assert e["heading"][0] == pytest.approx(math.degrees(DECL), abs=1e-9)  # compass heading grows by D

@@ -24,7 +24,6 @@ axes → ENU, true north (the reference's north: magnetic for BROAD, true for a 
 from __future__ import annotations
 
 import importlib
-import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -32,16 +31,12 @@ from typing import Any, Callable
 
 import numpy as np
 
+from biso_cosim import peers
 from biso_cosim.estimators import estimator_names, make_estimator
-from biso_cosim.frames import quat_from_euler, quat_multiply
 
 __all__ = ["Method", "PEERS", "method_names", "make_method", "peer_available"]
 
 PEERS = ("vqf", "vqf_offline", "imufusion")
-
-_IMUFUSION_DEFAULTS = {"gain": 0.5, "acceleration_rejection": 10.0, "magnetic_rejection": 10.0,
-                       "recovery_trigger_period_s": 5.0, "gyroscope_range": 2000.0}
-
 
 def method_names() -> tuple[str, ...]:
     """Registry names and peers (a user's ``module.Factory`` comes on top)."""
@@ -57,70 +52,18 @@ def peer_available(name: str) -> bool:
     return True
 
 
-def _magnetic_to_true(q_mag: np.ndarray, declination_rad: float) -> np.ndarray:
-    """Attitude relative to magnetic north → true north (the world turned by −D about Up)."""
-    if declination_rad == 0.0:
-        return q_mag
-    qz = quat_from_euler(0.0, 0.0, -declination_rad)
-    return quat_multiply(np.broadcast_to(qz, q_mag.shape).copy(), q_mag)
-
-
-def _c64(*arrays: np.ndarray) -> list[np.ndarray]:
-    return [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
-
-
 def _run_ours(name: str, params: dict, rec) -> np.ndarray:
     est = make_estimator(name, rec.fs_hz, **{"declination_rad": rec.declination_rad, **params})
     return est.update(rec.gyro_b, rec.accel_b, rec.mag_b).q_wb
 
 
-def _run_vqf(params: dict, rec) -> np.ndarray:
-    import vqf
-
-    est = vqf.VQF(1.0 / rec.fs_hz, **params)
-    out = est.updateBatch(*_c64(rec.gyro_b, rec.accel_b, rec.mag_b))
-    return _magnetic_to_true(out["quat9D"], rec.declination_rad)
+def _peer(run: Callable[..., np.ndarray]) -> Callable[[dict, Any], np.ndarray]:
+    def on_recording(params: dict, rec) -> np.ndarray:
+        return run(rec.gyro_b, rec.accel_b, rec.mag_b, rec.fs_hz, rec.declination_rad, **params)
+    return on_recording
 
 
-def _run_vqf_offline(params: dict, rec) -> np.ndarray:
-    import vqf
-
-    out = vqf.offlineVQF(*_c64(rec.gyro_b, rec.accel_b, rec.mag_b), 1.0 / rec.fs_hz, dict(params) or None)
-    return _magnetic_to_true(out["quat9D"], rec.declination_rad)
-
-
-def _run_imufusion(params: dict, rec) -> np.ndarray:
-    import imufusion
-
-    p = {**_IMUFUSION_DEFAULTS, **params}
-    fs = rec.fs_hz
-    settings = imufusion.AhrsSettings()
-    settings.convention = imufusion.CONVENTION_ENU
-    settings.gain = float(p["gain"])
-    settings.gyroscope_range = float(p["gyroscope_range"])
-    settings.acceleration_rejection = float(p["acceleration_rejection"])
-    settings.magnetic_rejection = float(p["magnetic_rejection"])
-    settings.rejection_timeout = int(p["recovery_trigger_period_s"] * fs)
-    settings.sample_rate = fs
-    ahrs = imufusion.Ahrs()
-    ahrs.set_settings(settings)
-    ahrs.set_sample_period(1.0 / fs)
-    bias_settings = imufusion.BiasSettings()
-    bias_settings.sample_rate = fs
-    offset = imufusion.Bias()
-    offset.set_settings(bias_settings)
-    gyro_deg = np.degrees(rec.gyro_b)
-    accel_g = rec.accel_b / 9.80665
-    mag = np.ascontiguousarray(rec.mag_b, dtype=np.float64)
-    out = np.empty((len(rec), 4))
-    update, get_q, correct = ahrs.update, ahrs.get_quaternion, offset.update
-    for i in range(len(rec)):  # imufusion's Python API has no batch call
-        update(correct(gyro_deg[i]), accel_g[i], mag[i])
-        out[i] = get_q()
-    return _magnetic_to_true(out, rec.declination_rad)
-
-
-_PEER_RUN = {"vqf": _run_vqf, "vqf_offline": _run_vqf_offline, "imufusion": _run_imufusion}
+_PEER_RUN = {name: _peer(getattr(peers, name)) for name in ("vqf", "vqf_offline", "imufusion")}
 
 
 def _as_q(out: Any, k: int, label: str) -> np.ndarray:
@@ -188,9 +131,9 @@ def make_method(name: str, params: dict | None = None, label: str = "") -> Metho
         if not peer_available(name):
             raise ValueError(f"--method {name}: the peer is not installed (pip install 'biso_cosim[score]')")
         if name == "imufusion":
-            unknown = sorted(set(params) - set(_IMUFUSION_DEFAULTS))
+            unknown = sorted(set(params) - set(peers.IMUFUSION_DEFAULTS))
             if unknown:
-                raise ValueError(f"--method imufusion: no parameter(s) {unknown}; known: {sorted(_IMUFUSION_DEFAULTS)}")
+                raise ValueError(f"--method imufusion: no parameter(s) {unknown}; known: {sorted(peers.IMUFUSION_DEFAULTS)}")
         elif name == "vqf" and params:
             import vqf
 
