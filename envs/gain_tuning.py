@@ -292,11 +292,18 @@ class GainTuningEnv(CosimEnv, EzPickle):
         info["params"] = self._params_in_force()
         return self._observation(), info
 
+    @property
+    def gains_in_place(self) -> bool:
+        """Whether the next action's gains are written in place by one kernel (BISO's closed
+        form tuned by f_c and r alone, on the fast path) rather than through ``retune``."""
+        tuned = self._sim.estimators["tuned"]
+        return self._sim.fast_path and tuned.arrays_version == self._closed_version and tuned.closed_form
+
     def step(self, action: Any):
         self._require_running()
         tuned = self._sim.estimators["tuned"]
         # (see reset; ``sim.fast_path = False`` takes the general path for the action too)
-        if self._sim.fast_path and tuned.arrays_version == self._closed_version and tuned.closed_form:
+        if self.gains_in_place:
             self._tune_closed(action, tuned)
         else:
             a = self._check_action(action)

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import ctypes
 import math
-import urllib.parse
-import urllib.request
+import os
+from urllib.parse import unquote, urlparse
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +38,8 @@ def _resources(location: str) -> Path | None:
     if not location:
         return None
     if location.startswith("file:"):
-        return Path(urllib.request.url2pathname(urllib.parse.urlparse(location).path))
+        path = unquote(urlparse(location).path)  # file:///C:/x on Windows: drop the slash before the drive
+        return Path(path[1:] if os.name == "nt" and path[2:3] == ":" else path)
     return Path(location)
 
 

@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 
-from types import SimpleNamespace
 
 from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _drive_action,
                                       _driving_period, _driving_view, _mean_angle, _mean_angles_to, _navigate_period,
@@ -18,7 +17,7 @@ from biso_cosim.frames import quat_angle_between
 from biso_cosim.vehicle._kernels import S_CROSS, S_S
 from biso_cosim.vehicle.drivetrain import DRIVETRAIN, drivetrain_coefficients
 from biso_cosim.vehicle.driver import DriverCommand, DriverState
-from biso_cosim.vehicle.sim import VehicleSim
+from biso_cosim.vehicle.sim import ControlArrays, apply_command
 
 
 def push_reference(values, gyro, accel, mag, fresh):
@@ -141,21 +140,19 @@ def test_period_kernels_are_the_window_and_each_environments_parts(k):
 
 
 def test_drive_action_writes_the_controls_of_its_driver_command():
-    """Driving-v0's action in one kernel: the controls ``VehicleSim.apply`` writes for the
+    """Driving-v0's action in one kernel: the controls ``VehicleSim.apply`` (``apply_command``) writes for the
     DriverCommand the action stands for, bit for bit (signed zeros too), and the driver's
     progress before the step; an action outside the bounds or NaN writes nothing."""
     actuators = np.array([6, 0, 5, 1, 2, 3, 4], dtype=np.int64)  # steering, drive, resistance, four brakes
     low, high, max_steer = np.array([-1.0, -1.0]), np.array([1.0, 1.0]), 0.6
     wheel_rates = np.array([20.0, 20.5, 21.0, 21.3])  # fl, fr, rl, rr, rad/s
     drivetrain = drivetrain_coefficients(DRIVETRAIN, mass_kg=1300.0, wheel_radius_m=0.316)
-    vehicle = SimpleNamespace(_actuators=actuators, _wheel_rates=wheel_rates, _drivetrain=drivetrain)
     state = DriverState()
     state.array[S_S] = 12.5
     for throttle, steering in [(0.3, -0.2), (-0.7, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, -1.0), (-1.0, 0.5)]:
         expected = np.full(7, 9.0)
         command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
-        vehicle._ctrl = expected
-        VehicleSim.apply(vehicle, command)
+        apply_command(ControlArrays(expected, actuators, wheel_rates, drivetrain), command)
         ctrl = np.full(7, 9.0)
         assert _drive_action(np.array([throttle, steering]), low, high, max_steer, ctrl, actuators, wheel_rates,
                              drivetrain, state.array) == 12.5

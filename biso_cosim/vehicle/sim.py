@@ -37,6 +37,13 @@ class ControlArrays(NamedTuple):
     drivetrain: np.ndarray
 
 
+def apply_command(controls: ControlArrays, command: DriverCommand) -> None:
+    """Write ``command`` into ``controls.ctrl`` (its drive through the drivetrain at the wheel
+    rates in ``controls``): what ``VehicleSim.apply`` does with its own arrays."""
+    _apply_controls(controls.ctrl, controls.actuators, command.steer_rad, command.drive, command.brake,
+                    controls.wheel_rates, controls.drivetrain)
+
+
 # Before time zero the car settles on its suspension with the brakes on for this long, so
 # that the first samples show a car at rest rather than contacts finding their depth.
 _SETTLE_S = 3.0
@@ -214,8 +221,7 @@ class VehicleSim:
     def apply(self, command: DriverCommand) -> None:
         """Write ``command`` into the controls (its drive through the drivetrain at the
         current wheel speeds)."""
-        _apply_controls(self._ctrl, self._actuators, command.steer_rad, command.drive, command.brake,
-                        self._wheel_rates, self._drivetrain)
+        apply_command(self._controls, command)
 
     def _measure(self) -> tuple[list[float], float, float, float]:
         """What the driver measures, as plain floats: rear-axle position, yaw, forward speed,
