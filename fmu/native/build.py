@@ -8,20 +8,18 @@ so that a host on another platform compiles it itself (e.g. ``fmpy.util.compile_
 
 from __future__ import annotations
 
-import html
 import platform
 import shutil
 import sys
 import tempfile
-import zipfile
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from biso_cosim import __version__
 from biso_cosim.fmu.native import NATIVE_DIR, estimator_headers, estimator_sources
 from biso_cosim.fmu.native.compiler import compile_objects, link_shared
-from biso_cosim.fmu.native.model_description import (NATIVE_FMUS, SUMMARY, build_description, model_description,
+from biso_cosim.fmu.native.model_description import (NATIVE_FMUS, build_description, model_description,
                                                      variables_c)
+from biso_cosim.fmu.native.packaging import write_documentation, zip_fmu
 from biso_cosim.fmu.native.sources import INCLUDE, SENSOR_DIR, write_sensor_data
 
 __all__ = ["build_native_fmu", "build_native_fmus", "native_fmu_file_name", "platform_folder", "FMI_VERSIONS", "fmu_sources"]
@@ -77,19 +75,8 @@ def fmu_sources(name: str, fmi_version: int, folder: Path, extra_profiles: Seque
     return sorted(names)
 
 
-def _documentation(name: str, fmi_version: int) -> str:
-    from biso_cosim.fmu.variables import variables_of
-
-    rows = "\n".join(
-        f"<tr><td><code>{html.escape(v.name)}</code></td><td>{v.type}</td><td>{v.causality}</td>"
-        f"<td>{v.variability}</td><td>{html.escape(v.unit)}</td><td>{html.escape(str(v.start))}</td>"
-        f"<td>{html.escape(v.description)}</td></tr>" for v in variables_of(name))
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{name}</title></head><body>"
-            f"<h1>{name} (FMI {fmi_version}.0 co-simulation)</h1><p>{html.escape(SUMMARY[name])}</p>"
-            f"<p>biso_cosim {__version__}. A native FMU: C99, no dependency beyond the C library and libm; its C "
-            "sources are in <code>sources/</code>. Guide: docs/fmu.md of the biso_cosim package.</p>"
-            "<table border='1'><tr><th>variable</th><th>type</th><th>causality</th><th>variability</th>"
-            f"<th>unit</th><th>start</th><th>description</th></tr>\n{rows}</table></body></html>\n")
+_ABOUT = ("A native FMU: C99, no dependency beyond the C library and libm; its C sources are in "
+          "<code>sources/</code>.")
 
 
 _COMMON = ("rng.c", "mpu9250.c", "wmm.c", "biso_sensor_data.c")  # + the estimators' sources
@@ -118,14 +105,8 @@ def _native_fmu(name: str, fmi_version: int, out_dir: Path, extra_profiles: Sequ
         (root / "modelDescription.xml").write_bytes(model_description(name, fmi_version, sources))
         if fmi_version == 3:
             (root / "sources" / "buildDescription.xml").write_bytes(build_description(name, sources))
-        (root / "documentation").mkdir()
-        (root / "documentation" / "index.html").write_text(_documentation(name, fmi_version), "utf-8")
-        shutil.copyfile(INCLUDE / "LICENSE-FMI.txt", root / "documentation" / "LICENSE-FMI.txt")
-        path = out_dir / native_fmu_file_name(name, fmi_version)
-        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
-            for item in sorted(root.rglob("*")):
-                if item.is_file():
-                    z.write(item, item.relative_to(root).as_posix())
+        write_documentation(root, name, fmi_version, _ABOUT)
+        path = zip_fmu(root, out_dir / native_fmu_file_name(name, fmi_version))
     return path
 
 

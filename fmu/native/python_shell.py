@@ -14,21 +14,20 @@ Python to start and where biso_cosim and its dependencies are:
 
 from __future__ import annotations
 
-import html
 import json
 import shutil
 import sys
 import sysconfig
 import tempfile
-import zipfile
 from pathlib import Path
 
 from biso_cosim import __version__
 from biso_cosim.fmu.native import INCLUDE_DIR, NATIVE_DIR
 from biso_cosim.fmu.native.build import native_fmu_file_name, platform_folder
 from biso_cosim.fmu.native.compiler import compile_objects, link_shared
-from biso_cosim.fmu.native.model_description import SUMMARY, instantiation_token, model_description
-from biso_cosim.fmu.variables import fingerprint, variables_of
+from biso_cosim.fmu.native.model_description import instantiation_token, model_description
+from biso_cosim.fmu.native.packaging import write_documentation, zip_fmu
+from biso_cosim.fmu.variables import fingerprint
 
 __all__ = ["PYTHON_FMUS", "build_python_fmu", "python_config", "shared_libpython"]
 
@@ -59,20 +58,10 @@ def python_config() -> str:
     return "\n".join(lines) + "\n"
 
 
-def _documentation(name: str, fmi_version: int) -> str:
-    rows = "\n".join(
-        f"<tr><td><code>{html.escape(v.name)}</code></td><td>{v.type}</td><td>{v.causality}</td>"
-        f"<td>{v.variability}</td><td>{html.escape(v.unit)}</td><td>{html.escape(str(v.start))}</td>"
-        f"<td>{html.escape(v.description)}</td></tr>" for v in variables_of(name))
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{name}</title></head><body>"
-            f"<h1>{name} (FMI {fmi_version}.0 co-simulation)</h1><p>{html.escape(SUMMARY[name])}</p>"
-            f"<p>biso_cosim {__version__}. A Python-based FMU: its binary is a small C shell that runs the model "
-            "on CPython. In a Python host (e.g. FMPy) it uses the host's interpreter, which must be the same "
-            "Python version and import biso_cosim (or find it in the site-packages named in "
-            "<code>resources/python.txt</code>); in a native host it starts the shared libpython named there. "
-            "Guide: docs/fmu.md of the biso_cosim package.</p>"
-            "<table border='1'><tr><th>variable</th><th>type</th><th>causality</th><th>variability</th>"
-            f"<th>unit</th><th>start</th><th>description</th></tr>\n{rows}</table></body></html>\n")
+_ABOUT = ("A Python-based FMU: its binary is a small C shell that runs the model on CPython. In a Python "
+          "host (e.g. FMPy) it uses the host's interpreter, which must be the same Python version and import "
+          "biso_cosim (or find it in the site-packages named in <code>resources/python.txt</code>); in a native "
+          "host it starts the shared libpython named there.")
 
 
 def build_python_fmu(name: str, fmi_version: int, out_dir: str | Path) -> Path:
@@ -108,12 +97,6 @@ def build_python_fmu(name: str, fmi_version: int, out_dir: str | Path) -> Path:
         (resources / STAMP_FILE).write_text(json.dumps({"fmu": name, "version": __version__,
                                                         "fingerprint": fingerprint(name)}), "utf-8")
         (resources / "python.txt").write_text(python_config(), "utf-8")
-        (fmu / "documentation").mkdir()
-        (fmu / "documentation" / "index.html").write_text(_documentation(name, fmi_version), "utf-8")
-        shutil.copyfile(INCLUDE_DIR / "LICENSE-FMI.txt", fmu / "documentation" / "LICENSE-FMI.txt")
-        path = out_dir / native_fmu_file_name(name, fmi_version)
-        with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
-            for item in sorted(fmu.rglob("*")):
-                if item.is_file():
-                    z.write(item, item.relative_to(fmu).as_posix())
+        write_documentation(fmu, name, fmi_version, _ABOUT)
+        path = zip_fmu(fmu, out_dir / native_fmu_file_name(name, fmi_version))
     return path
