@@ -31,9 +31,15 @@ def car_spec() -> mujoco.MjSpec:
     return mujoco.MjSpec.from_string(CAR_XML.read_text())
 
 
-def build_model(terrain: Terrain, *, timestep_s: float = 0.001,
-                history_steps: int = 0) -> tuple[mujoco.MjModel, list[HeightField]]:
+def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: int = 0,
+                tyres: str = "coulomb", tyre_params=None,
+                surface: str | float = "dry") -> tuple[mujoco.MjModel, list[HeightField]]:
     """Compile the car on ``terrain``: the ground plane plus one height field per patch.
+
+    ``tyres``: ``"coulomb"`` (the default: MuJoCo's Coulomb friction on the sphere wheels) or
+    ``"magic_formula"`` (slip-based tyre forces of ``vehicle.tyres``, a C engine plugin, with
+    ``tyre_params``, default ``tyres.TYRES``, on a road of friction ``surface``: a name of
+    ``tyres.SURFACES`` or a scale; only with the magic_formula tyres).
 
     Returns the model and the sampled patches. The magnetic field of the model stays zero:
     the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`. With
@@ -44,14 +50,24 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001,
         raise ValueError(f"timestep_s must be > 0, got {timestep_s}")
     if isinstance(history_steps, bool) or not isinstance(history_steps, int) or history_steps < 0:
         raise ValueError(f"history_steps must be an int >= 0, got {history_steps!r}")
+    if tyres not in ("coulomb", "magic_formula"):
+        raise ValueError(f"tyres must be 'coulomb' or 'magic_formula', got {tyres!r}")
+    if tyres == "coulomb" and (tyre_params is not None or surface != "dry"):
+        raise ValueError("tyre_params and surface apply to tyres='magic_formula' only")
     spec = car_spec()
+    ground_friction = _GROUND_FRICTION
+    if tyres == "magic_formula":
+        from biso_cosim.vehicle.tyres import add_tyre_plugin, surface_friction
+
+        ground_friction = [surface_friction(surface), *_GROUND_FRICTION[1:]]
+        add_tyre_plugin(spec, tyre_params)
     spec.option.timestep = timestep_s
     for sensor in spec.sensors:
         sensor.nsample = history_steps
     # the collision plane is hidden (group 3); what is drawn is a plane 2 cm below it, so that
     # the height-field patches, whose borders lie at z = 0, do not z-fight with the ground
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
-                            material="ground", friction=_GROUND_FRICTION, group=3)
+                            material="ground", friction=ground_friction, group=3)
     spec.worldbody.add_geom(name="ground_visual", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0],
                             pos=[0.0, 0.0, -0.02], material="ground", contype=0, conaffinity=0, group=0)
     patches = terrain.patches()
@@ -65,7 +81,7 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001,
         cx, cy = patch.center_m
         spec.worldbody.add_geom(name=f"terrain{k}", type=mujoco.mjtGeom.mjGEOM_HFIELD,
                                 hfieldname=f"terrain{k}", pos=[cx, cy, 0.0], material="ground",
-                                friction=_GROUND_FRICTION)
+                                friction=ground_friction)
     return spec.compile(), patches
 
 

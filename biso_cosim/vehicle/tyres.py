@@ -1,0 +1,309 @@
+"""Slip-based tyres: Magic Formula forces computed inside MuJoCo's step by a C engine plugin.
+
+``build_model(..., tyres="magic_formula")`` (``vehicle.model``) gives the four tyre geoms
+``condim`` 1 (MuJoCo's contact then carries the normal load only) and adds an instance of
+the plugin ``biso.tyres`` (``vehicle/native/tyres.c``, whose header gives the method: Pacejka's
+Magic Formula with combined slip and load sensitivity, first-order relaxation of both slips,
+low-speed damping, the vertical load from MuJoCo's solved contacts). The default,
+``tyres="coulomb"``, is the car as it was: spheres with Coulomb friction.
+
+The plugin is C, compiled on first use with the system C compiler (the one the native FMUs
+use, ``biso_cosim.fmu.native.compiler``) into a cache directory (``$BISO_COSIM_CACHE``, else
+``$XDG_CACHE_HOME/biso_cosim``, else ``~/.cache/biso_cosim``), keyed by the source, the
+compiler flags and MuJoCo's version, and loaded once per process with
+``mujoco.mj_loadPluginLibrary``.
+
+:class:`TyreParams` holds each parameter with its source and its physical range
+(``check`` refuses a value outside it, naming the parameter and the range); ``SURFACES``
+the friction scale of each road surface.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import math
+import os
+import subprocess
+import tempfile
+from dataclasses import asdict, dataclass, fields
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from biso_cosim.estimators._base import param
+
+__all__ = ["TyreParams", "TYRES", "SURFACES", "TYRE_MODELS", "PLUGIN_NAME", "plugin_library", "load_plugin",
+           "magic_formula", "tyre_states", "STATE_STRIDE", "surface_friction"]
+
+PLUGIN_NAME = "biso.tyres"
+INSTANCE_NAME = "tyres"
+"""The plugin instance's name in a car model."""
+TYRE_MODELS = ("coulomb", "magic_formula")
+"""``coulomb``: MuJoCo's friction on sphere wheels (the default); ``magic_formula``: this module."""
+
+_BOOK = "Pacejka, Tyre and Vehicle Dynamics (2nd ed. 2006 / 3rd ed. 2012), Appendix 3, Table A3.1"
+_TYRE = "205/60 R15 91V car tyre at 2.2 bar, F_z0 = 4000 N (the book's MF parameter set of the class)"
+
+SURFACES = {"dry": 1.0, "wet": 0.7, "gravel": 0.7, "snow": 0.25, "ice": 0.12}
+"""Friction scale λ_μ of each road surface against dry asphalt: peak road friction of Wong,
+Theory of Ground Vehicles (4th ed. 2008), Table 1.3 (dry asphalt 0.8-0.9, wet asphalt
+0.5-0.7, gravel 0.6, hard-packed snow 0.2, ice 0.1), divided by dry asphalt's 0.85."""
+
+# physical ranges of the parameters (closed intervals): what ``TyreParams.check`` accepts
+_RANGES = {
+    "fz0_n": (1000.0, 20000.0), "pcx1": (1.0, 2.0), "pdx1": (0.1, 2.0), "pdx2": (-1.0, 1.0),
+    "pex1": (-10.0, 1.0), "pex2": (-10.0, 10.0), "pex3": (-10.0, 10.0), "pkx1": (1.0, 100.0),
+    "pkx2": (-50.0, 50.0), "pkx3": (-5.0, 5.0), "pcy1": (1.0, 2.0), "pdy1": (0.1, 2.0),
+    "pdy2": (-1.0, 1.0), "pey1": (-10.0, 1.0), "pey2": (-10.0, 10.0), "pky1": (1.0, 100.0),
+    "pky2": (0.2, 10.0), "rbx1": (0.0, 50.0), "rbx2": (-50.0, 50.0), "rcx1": (0.5, 2.0),
+    "rby1": (0.0, 50.0), "rby2": (-50.0, 50.0), "rcy1": (0.5, 2.0), "sigma_x_m": (0.05, 2.0),
+    "sigma_y_m": (0.05, 2.0), "v_low_mps": (0.1, 10.0), "damping_x_ns_per_m": (0.0, 10000.0),
+    "damping_y_ns_per_m": (0.0, 100000.0),
+}
+
+
+@dataclass(frozen=True)
+class TyreParams:
+    """The Magic Formula tyre of the reference car (all four wheels alike). The asymmetric
+    terms of the book's set (PEX4, PEY3, the shifts PH*, PV*, RBY3, camber) are left out:
+    the forces are odd in each slip."""
+
+    fz0_n: float = param(4000.0, symbol="F_z0", unit="N", doc="nominal load", source=f"{_BOOK}: FNOMIN; {_TYRE}")
+    pcx1: float = param(1.685, symbol="p_Cx1", unit="-", doc="shape factor C_x", source=f"{_BOOK}: PCX1")
+    pdx1: float = param(1.210, symbol="p_Dx1", unit="-", doc="longitudinal friction μ_x at F_z0", source=f"{_BOOK}: PDX1")
+    pdx2: float = param(-0.037, symbol="p_Dx2", unit="-", doc="variation of μ_x with load", source=f"{_BOOK}: PDX2")
+    pex1: float = param(0.344, symbol="p_Ex1", unit="-", doc="curvature E_x at F_z0", source=f"{_BOOK}: PEX1")
+    pex2: float = param(0.095, symbol="p_Ex2", unit="-", doc="variation of E_x with load", source=f"{_BOOK}: PEX2")
+    pex3: float = param(-0.020, symbol="p_Ex3", unit="-", doc="variation of E_x with load squared",
+                        source=f"{_BOOK}: PEX3")
+    pkx1: float = param(21.51, symbol="p_Kx1", unit="-", doc="slip stiffness K_xκ/F_z at F_z0", source=f"{_BOOK}: PKX1")
+    pkx2: float = param(-0.163, symbol="p_Kx2", unit="-", doc="variation of K_xκ/F_z with load",
+                        source=f"{_BOOK}: PKX2")
+    pkx3: float = param(0.245, symbol="p_Kx3", unit="-", doc="exponent of K_xκ's variation with load",
+                        source=f"{_BOOK}: PKX3")
+    pcy1: float = param(1.193, symbol="p_Cy1", unit="-", doc="shape factor C_y", source=f"{_BOOK}: PCY1")
+    pdy1: float = param(0.990, symbol="p_Dy1", unit="-", doc="lateral friction μ_y at F_z0",
+                        source=f"{_BOOK}: PDY1 = -0.990 (ISO sign; here the force opposes the slip)")
+    pdy2: float = param(-0.145, symbol="p_Dy2", unit="-", doc="variation of μ_y with load",
+                        source=f"{_BOOK}: PDY2 = 0.145 with PDY1's sign turned (μ_y falls with load)")
+    pey1: float = param(-1.003, symbol="p_Ey1", unit="-", doc="curvature E_y at F_z0", source=f"{_BOOK}: PEY1")
+    pey2: float = param(-0.537, symbol="p_Ey2", unit="-", doc="variation of E_y with load", source=f"{_BOOK}: PEY2")
+    pky1: float = param(14.95, symbol="p_Ky1", unit="-", doc="maximum cornering stiffness K_yα/F_z0",
+                        source=f"{_BOOK}: PKY1 = -14.95 (ISO sign)")
+    pky2: float = param(2.130, symbol="p_Ky2", unit="-", doc="load of the maximum cornering stiffness, /F_z0",
+                        source=f"{_BOOK}: PKY2")
+    rbx1: float = param(12.35, symbol="r_Bx1", unit="-", doc="combined slip: G_xα's slope factor",
+                        source=f"{_BOOK}: RBX1")
+    rbx2: float = param(-10.77, symbol="r_Bx2", unit="-", doc="combined slip: G_xα's variation with κ",
+                        source=f"{_BOOK}: RBX2")
+    rcx1: float = param(1.092, symbol="r_Cx1", unit="-", doc="combined slip: G_xα's shape factor",
+                        source=f"{_BOOK}: RCX1")
+    rby1: float = param(6.461, symbol="r_By1", unit="-", doc="combined slip: G_yκ's slope factor",
+                        source=f"{_BOOK}: RBY1")
+    rby2: float = param(4.196, symbol="r_By2", unit="-", doc="combined slip: G_yκ's variation with α",
+                        source=f"{_BOOK}: RBY2")
+    rcy1: float = param(1.081, symbol="r_Cy1", unit="-", doc="combined slip: G_yκ's shape factor",
+                        source=f"{_BOOK}: RCY1")
+    sigma_x_m: float = param(0.20, symbol="σ_κ", unit="m", doc="longitudinal relaxation length",
+                             source="Pacejka 2012 ch. 7-8: car tyres 0.1-0.3 m longitudinally; chosen")
+    sigma_y_m: float = param(0.45, symbol="σ_α", unit="m", doc="lateral relaxation length",
+                             source="Pacejka 2012 ch. 7: σ_α = C_Fα/C_Fy, about 1-1.5 tyre radii for a car "
+                                    "tyre at its nominal load; chosen 0.45 m")
+    v_low_mps: float = param(2.0, symbol="v_low", unit="m/s",
+                             doc="below it the low-speed damping fades in (½(1 + cos(π|V_x|/v_low)))",
+                             source="Pacejka 2012 §8 (low-speed damping of the transient model); chosen")
+    damping_x_ns_per_m: float = param(3000.0, symbol="k_x,low", unit="N·s/m",
+                                      doc="low-speed damping of the longitudinal slip velocity at rest",
+                                      source="chosen: about critical for a wheel's spin inertia on the tyre's "
+                                             "longitudinal deflection stiffness")
+    damping_y_ns_per_m: float = param(8000.0, symbol="k_y,low", unit="N·s/m",
+                                      doc="low-speed damping of the lateral slip velocity at rest",
+                                      source="chosen: about critical for a corner's share of the car on the "
+                                             "tyre's lateral deflection stiffness")
+
+    def check(self) -> None:
+        """ValueError naming the parameter and its range for a value out of physical range."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            lo, hi = _RANGES[f.name]
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"TyreParams.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
+                                 f"got {value!r}")
+
+    def config(self) -> dict[str, str]:
+        """The plugin instance's configuration: every parameter by name, exactly (repr)."""
+        self.check()
+        return {name: repr(float(value)) for name, value in asdict(self).items()}
+
+    def array(self) -> np.ndarray:
+        """The parameters in the C plugin's order (``biso_tyres_param_name``)."""
+        self.check()
+        lib = _ctypes_library()
+        values = asdict(self)
+        names = [lib.biso_tyres_param_name(i).decode() for i in range(lib.biso_tyres_param_count())]
+        if sorted(names) != sorted(values):
+            raise RuntimeError(f"the C plugin's parameters {names} are not TyreParams' {sorted(values)}")
+        return np.array([values[n] for n in names], dtype=np.float64)
+
+    @staticmethod
+    def table() -> str:
+        """The parameters as a Markdown table with their ranges (docs/vehicle.md shows it)."""
+        rows = ["| parameter | symbol | unit | default | range | meaning | source |", "|---|---|---|---|---|---|---|"]
+        for f in fields(TyreParams):
+            lo, hi = _RANGES[f.name]
+            m = f.metadata
+            rows.append(f"| `{f.name}` | {m['symbol']} | {m['unit']} | `{f.default!r}` | {lo:g} to {hi:g} | "
+                        f"{m['doc']} | {m['source']} |")
+        return "\n".join(rows)
+
+
+TYRES = TyreParams()
+"""The reference car's tyres."""
+
+
+def surface_friction(surface: str | float) -> float:
+    """λ_μ of a named surface (``SURFACES``) or a number in (0, 1.5]."""
+    if isinstance(surface, str):
+        if surface not in SURFACES:
+            raise ValueError(f"surface must be one of {', '.join(SURFACES)} or a friction scale in (0, 1.5], "
+                             f"got {surface!r}")
+        return SURFACES[surface]
+    value = float(surface)
+    if not (math.isfinite(value) and 0.0 < value <= 1.5):
+        raise ValueError(f"surface friction scale must be in (0, 1.5], got {surface!r}")
+    return value
+
+
+# ---- the C plugin: build on first use, load once ------------------------------------------
+
+_SOURCE = resources.files("biso_cosim.vehicle").joinpath("native/tyres.c")
+_EXTRA_FLAGS = ("-fPIC", "-shared", "-fexceptions", "-fvisibility=hidden")
+
+
+def _cache_root() -> Path:
+    for var, sub in (("BISO_COSIM_CACHE", ""), ("XDG_CACHE_HOME", "biso_cosim")):
+        if os.environ.get(var):
+            return Path(os.environ[var]) / sub
+    return Path.home() / ".cache" / "biso_cosim"
+
+
+def _mujoco_paths() -> tuple[Path, Path]:
+    """(MuJoCo's include directory, its shared library) inside the installed mujoco package."""
+    import mujoco
+
+    root = Path(mujoco.__file__).parent
+    libs = sorted(root.glob("libmujoco.so*")) or sorted(root.glob("libmujoco*.dylib")) or sorted(root.glob("mujoco*.dll"))
+    if not (root / "include" / "mujoco" / "mjplugin.h").is_file() or not libs:
+        raise RuntimeError(f"the mujoco package at {root} has no include/mujoco/mjplugin.h or libmujoco: "
+                           "the tyre plugin cannot be built")
+    return root / "include", libs[0]
+
+
+@functools.cache
+def plugin_library() -> Path:
+    """The compiled plugin (built into the cache directory on first use)."""
+    import mujoco
+
+    from biso_cosim.fmu.native.compiler import CFLAGS, CompilerNotFound, find_compiler
+
+    include, libmujoco = _mujoco_paths()
+    source = _SOURCE.read_bytes()
+    key = hashlib.sha256(source + repr((CFLAGS, _EXTRA_FLAGS, mujoco.__version__, str(libmujoco))).encode()).hexdigest()
+    folder = _cache_root() / f"tyres-{key[:16]}"
+    target = folder / "libbiso_tyres.so"
+    if target.is_file():
+        return target
+    try:
+        cc = find_compiler()
+    except CompilerNotFound as exc:
+        raise CompilerNotFound("the magic_formula tyres are a C plugin compiled on first use: "
+                               f"{str(exc).split('; ', 1)[-1]}") from None
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        src = Path(tmp) / "tyres.c"
+        src.write_bytes(source)
+        out = Path(tmp) / target.name
+        args = [*cc.split(), *CFLAGS, *_EXTRA_FLAGS, f"-I{include}", str(src), str(libmujoco),
+                f"-Wl,-rpath,{libmujoco.parent}", "-lm", "-o", str(out)]
+        done = subprocess.run(args, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"compiling the tyre plugin failed ({' '.join(args)}):\n{done.stderr[-4000:]}")
+        os.replace(out, target)  # atomic: another process may build the same at the same time
+    return target
+
+
+@functools.cache
+def load_plugin() -> Path:
+    """Register the plugin ``biso.tyres`` with MuJoCo (once per process)."""
+    import mujoco
+
+    path = plugin_library()
+    mujoco.mj_loadPluginLibrary(str(path))
+    return path
+
+
+@functools.cache
+def _ctypes_library() -> ctypes.CDLL:
+    lib = ctypes.CDLL(str(load_plugin()))
+    lib.biso_tyres_param_name.restype = ctypes.c_char_p
+    lib.biso_tyres_param_name.argtypes = [ctypes.c_int]
+    lib.biso_tyres_param_count.restype = ctypes.c_int
+    lib.biso_tyres_state_stride.restype = ctypes.c_int
+    dp = ctypes.POINTER(ctypes.c_double)
+    lib.biso_tyres_magic_formula.restype = None
+    lib.biso_tyres_magic_formula.argtypes = [dp, ctypes.c_double, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                                             dp, dp]
+    return lib
+
+
+def magic_formula(fz_n: float, slip_ratio: float, lateral_slip: float, *, params: TyreParams = TYRES,
+                  friction_scale: float = 1.0) -> tuple[float, float]:
+    """(F_x, F_y) in N of the plugin's C function at load ``fz_n``, slip ratio κ and lateral
+    slip tan α (F_x along the heading, F_y to the left, opposing the lateral slip)."""
+    lib = _ctypes_library()
+    p = params.array()
+    fx, fy = ctypes.c_double(), ctypes.c_double()
+    dp = ctypes.POINTER(ctypes.c_double)
+    lib.biso_tyres_magic_formula(p.ctypes.data_as(dp), float(fz_n), float(slip_ratio), float(lateral_slip),
+                                 float(friction_scale), ctypes.byref(fx), ctypes.byref(fy))
+    return fx.value, fy.value
+
+
+STATE_STRIDE = 15
+"""Numbers of the plugin state per wheel (tyres.c: slip ratio, lateral slip, load, F_x, F_y,
+in contact, heading (3), left (3), contact point (3))."""
+STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact")
+
+
+def tyre_states(model, data) -> dict[str, np.ndarray]:
+    """The plugin's per-wheel quantities now (wheels fl, fr, rl, rr): ``STATE_COLUMNS``."""
+    import mujoco
+
+    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_PLUGIN, INSTANCE_NAME)
+    if i < 0:
+        raise ValueError("the model has no tyre plugin (build it with tyres='magic_formula')")
+    adr = int(model.plugin_stateadr[i])
+    state = np.asarray(data.plugin_state[adr:adr + 4 * STATE_STRIDE]).reshape(4, STATE_STRIDE)
+    return {name: state[:, k].copy() for k, name in enumerate(STATE_COLUMNS)}
+
+
+WHEEL_GEOMS = ("fl_tyre", "fr_tyre", "rl_tyre", "rr_tyre")
+
+
+def add_tyre_plugin(spec, params: TyreParams | None = None) -> None:
+    """Turn the car of ``spec`` (``model.car_spec()``) to the Magic Formula tyres: its tyre
+    geoms without MuJoCo's friction (condim 1: the contact carries the normal load only) and
+    an instance of the plugin with ``params`` (default ``TYRES``) acting on them."""
+    params = TYRES if params is None else params
+    if not isinstance(params, TyreParams):
+        raise TypeError(f"tyre_params must be a TyreParams, got {type(params).__name__}")
+    config = params.config()
+    load_plugin()
+    for name in WHEEL_GEOMS:
+        spec.geom(name).condim = 1
+    spec.activate_plugin(PLUGIN_NAME)  # what <extension><plugin plugin=...> does in MJCF
+    instance = spec.add_plugin(name=INSTANCE_NAME, plugin_name=PLUGIN_NAME)
+    instance.config = {**config, "wheels": " ".join(WHEEL_GEOMS)}
