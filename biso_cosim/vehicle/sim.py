@@ -128,7 +128,8 @@ class VehicleSim:
     """The reference car on ``route``'s terrain, driven by the scripted driver."""
 
     def __init__(self, route: Route, *, physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0,
-                 driver_params: DriverParams | None = None, drivetrain: DrivetrainParams = DRIVETRAIN):
+                 driver_params: DriverParams | None = None, drivetrain: DrivetrainParams = DRIVETRAIN,
+                 tyres: str = "coulomb", tyre_params=None, surface: str | float = "dry"):
         if not physics_rate_hz > 0.0:
             raise ValueError(f"physics_rate_hz must be > 0, got {physics_rate_hz}")
         if not control_rate_hz > 0.0:
@@ -142,8 +143,11 @@ class VehicleSim:
         self.control_rate_hz = float(control_rate_hz)
         self.steps_per_control = int(round(ratio))
         self._history_steps = min(self.steps_per_control, _MAX_HISTORY_STEPS)
+        # tyres: "coulomb" (the default) or "magic_formula" (vehicle.tyres), see build_model
+        self.tyres = tyres
         self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz,
-                                               history_steps=self._history_steps)
+                                               history_steps=self._history_steps, tyres=tyres,
+                                               tyre_params=tyre_params, surface=surface)
         self.data = mujoco.MjData(self.model)
         self.index = CarIndex.of(self.model)
         params = vehicle_parameters(self.model, drivetrain)
