@@ -221,3 +221,68 @@ def test_steady_circle_understeer_and_sideslip(circle_points):
     linear = math.degrees(w_f / cornering_stiffness(w_f) - w_r / cornering_stiffness(w_r))
     assert linear == pytest.approx(0.46, abs=0.02)
     assert fit["understeer_gradient_deg_per_g"] > linear
+
+
+def bicycle_step_response(mass, iz, a, b, c_f, c_r, v, times, steer, sigma, dt=1e-4):
+    """The linear bicycle model (Gillespie 1992, ch. 6) with axle cornering stiffnesses c_f,
+    c_r, each axle's force lagging its steady value c·α by the tyres' relaxation length sigma
+    (Pacejka 2012, ch. 7: dF/dt = (v/σ)(c·α − F)), driven by the road-wheel angle ``steer``
+    at ``times`` (linear in between); states lateral velocity, yaw rate, the two forces:
+    (times, yaw rates), Euler at dt."""
+    vy = r = f_f = f_r = 0.0
+    t = np.arange(int(times[-1] / dt)) * dt
+    angle = np.interp(t, times, steer)
+    out = np.empty(t.shape)
+    for k in range(t.shape[0]):
+        delta = angle[k]
+        alpha_f, alpha_r = delta - (vy + a * r) / v, -(vy - b * r) / v
+        dvy = (f_f + f_r) / mass - v * r
+        dr = (a * f_f - b * f_r) / iz
+        f_f += dt * v / sigma * (c_f * alpha_f - f_f)
+        f_r += dt * v / sigma * (c_r * alpha_r - f_r)
+        vy += dt * dvy
+        r += dt * dr
+        out[k] = r
+    return t, out
+
+
+def test_step_steer_matches_the_linear_bicycle_model_of_the_tyres():
+    """ISO 7401 step steer at 80 km/h, 4 m/s² (in the tyres' linear range): the MuJoCo car's
+    yaw rate follows the linear bicycle model with the Magic Formula's cornering stiffnesses
+    at the static loads, the relaxation length, the car's mass, yaw inertia and axle
+    distances, driven by the car's own road-wheel angle (the steering servo lags the
+    command): the time to 90 % of the steady yaw rate within 12 %, the steady yaw rate
+    within 5 %, no overshoot."""
+    from biso_cosim.vehicle.handling import step_steer_series
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = step_steer_series(understeer_deg_per_g=0.5)
+    model = car_spec().compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    chassis = model.body("chassis").id
+    com = data.subtree_com[chassis]
+    iz = 0.0  # yaw inertia of the whole car about its centre of mass
+    for body in range(1, model.nbody):
+        rot = data.ximat[body].reshape(3, 3)
+        inertia = rot @ np.diag(model.body_inertia[body]) @ rot.T
+        d = data.xipos[body] - com
+        iz += inertia[2, 2] + model.body_mass[body] * (d[0] ** 2 + d[1] ** 2)
+    front_x = data.xpos[model.body("fl_corner").id][0]
+    rear_x = data.xpos[model.body("rl_corner").id][0]
+    a, b = front_x - com[0], com[0] - rear_x
+    mass = float(model.body_subtreemass[chassis])
+    w_f, w_r = mass * G * b / (a + b) / 2, mass * G * a / (a + b) / 2
+    speed = float(np.mean(run["speed_mps"]))
+    t, r = bicycle_step_response(mass, iz, a, b, 2 * cornering_stiffness(w_f), 2 * cornering_stiffness(w_r),
+                                 speed, run["t_s"], run["steer_rad"], TYRES.sigma_y_m)
+    measured = np.interp(t, run["t_s"], run["yaw_rate_rad_s"])
+
+    def t90(rates):
+        return t[np.flatnonzero(rates >= 0.9 * np.mean(rates[t > t[-1] - 1.5]))[0]]
+
+    # within 12 %: the reference has no roll, no load transfer, no suspension
+    assert t90(measured) == pytest.approx(t90(r), rel=0.12)
+    assert np.mean(measured[t > 4.0]) == pytest.approx(np.mean(r[t > 4.0]), rel=0.05)
+    assert np.max(measured) < 1.05 * np.mean(measured[t > 4.0])  # the book tyre's soft cornering: no overshoot

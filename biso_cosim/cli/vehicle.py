@@ -2,8 +2,11 @@
 
 ``biso-cosim vehicle performance`` drives the MuJoCo car at full throttle from rest on a
 straight, flat road and prints 0-100 km/h, top speed and rear-wheel slip against the
-published figures of its class (docs/vehicle.md); ``--params`` prints the drivetrain's
-parameters with their sources.
+published figures of its class (docs/vehicle.md); ``params`` prints the drivetrain's
+parameters with their sources (``--tyres``: the Magic Formula tyres'); ``biso-cosim vehicle
+handling --out DIR`` runs the handling tests with the slip-based tyres (ISO 4138 steady
+circle, ISO 7401 step steer, braking from 100 km/h, the tyre model's cost per physics step)
+and writes handling.md, handling.json and a plot into DIR (``vehicle.handling``).
 """
 
 from __future__ import annotations
@@ -23,7 +26,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     perf.add_argument("--json", action="store_true", help="print the figures as JSON")
     perf.set_defaults(func=performance)
     params = actions.add_parser("params", help="the drivetrain's parameters with their sources (Markdown)")
+    params.add_argument("--tyres", action="store_true", help="the Magic Formula tyres' parameters instead")
     params.set_defaults(func=show_params)
+    handling = actions.add_parser("handling", help="ISO 4138 steady circle, ISO 7401 step steer and braking "
+                                                   "with the slip-based tyres, against the class's figures",
+                                  description="The handling report of the car with tyres='magic_formula' "
+                                              "(docs/vehicle.md, section Tyres).")
+    handling.add_argument("--out", required=True, metavar="DIR", help="directory for handling.md, .json, .png")
+    handling.add_argument("--radius", type=float, default=40.0, metavar="M",
+                          help="radius of the steady circle, m (default 40; 20-200)")
+    handling.set_defaults(func=run_handling)
 
 
 def performance(args: argparse.Namespace) -> int:
@@ -39,7 +51,29 @@ def performance(args: argparse.Namespace) -> int:
 
 
 def show_params(args: argparse.Namespace) -> int:
+    if args.tyres:
+        from biso_cosim.vehicle.tyres import TyreParams
+
+        print(TyreParams.table())
+        return 0
     from biso_cosim.vehicle.drivetrain import DrivetrainParams
 
     print(DrivetrainParams.table())
+    return 0
+
+
+def run_handling(args: argparse.Namespace) -> int:
+    if not (math.isfinite(args.radius) and 20.0 <= args.radius <= 200.0):
+        raise ValueError(f"--radius must be a number of metres in [20, 200], got {args.radius:g}")
+    import warnings
+    from pathlib import Path
+
+    from biso_cosim.routes.route import RouteWarning
+    from biso_cosim.vehicle.handling import handling_report
+
+    with warnings.catch_warnings():
+        # the circle's lateral-acceleration cap of the route: the runs hold their own speed
+        warnings.simplefilter("ignore", RouteWarning)
+        handling_report(args.out, radius_m=args.radius)
+    print((Path(args.out) / "handling.md").read_text(), end="")
     return 0
