@@ -286,3 +286,29 @@ def test_step_steer_matches_the_linear_bicycle_model_of_the_tyres():
     assert t90(measured) == pytest.approx(t90(r), rel=0.12)
     assert np.mean(measured[t > 4.0]) == pytest.approx(np.mean(r[t > 4.0]), rel=0.05)
     assert np.max(measured) < 1.05 * np.mean(measured[t > 4.0])  # the book tyre's soft cornering: no overshoot
+
+
+def test_docs_vehicle_shows_the_tyre_parameters_in_force():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "vehicle.md").read_text()
+    assert TyreParams.table() in text, "run: biso-cosim vehicle params --tyres, and paste it into docs/vehicle.md"
+
+
+def test_the_plugin_builds_into_the_cache_and_without_a_compiler_says_so_in_one_line(tmp_path, monkeypatch):
+    from biso_cosim.fmu.native.compiler import CompilerNotFound, find_compiler
+    from biso_cosim.vehicle.tyres import plugin_library
+
+    monkeypatch.setenv("BISO_COSIM_CACHE", str(tmp_path))
+    built = plugin_library.__wrapped__()  # the cached function's body: a fresh build
+    assert built.is_file() and built.parent.parent == tmp_path and built.name == "libbiso_tyres.so"
+    assert plugin_library.__wrapped__() == built  # found in the cache the second time
+    monkeypatch.setenv("BISO_COSIM_CACHE", str(tmp_path / "empty"))
+    monkeypatch.setenv("CC", "no-such-compiler-anywhere")
+    find_compiler.cache_clear()
+    try:
+        with pytest.raises(CompilerNotFound, match="the magic_formula tyres are a C plugin") as error:
+            plugin_library.__wrapped__()
+        assert "\n" not in str(error.value) and "install one" in str(error.value)
+    finally:
+        find_compiler.cache_clear()

@@ -108,13 +108,13 @@ class TyreParams:
     rcy1: float = param(1.081, symbol="r_Cy1", unit="-", doc="combined slip: G_yκ's shape factor",
                         source=f"{_BOOK}: RCY1")
     sigma_x_m: float = param(0.20, symbol="σ_κ", unit="m", doc="longitudinal relaxation length",
-                             source="Pacejka 2012 ch. 7-8: car tyres 0.1-0.3 m longitudinally; chosen")
+                             source="chosen, shorter than the lateral one; the model: Pacejka 2012, ch. 7")
     sigma_y_m: float = param(0.45, symbol="σ_α", unit="m", doc="lateral relaxation length",
-                             source="Pacejka 2012 ch. 7: σ_α = C_Fα/C_Fy, about 1-1.5 tyre radii for a car "
-                                    "tyre at its nominal load; chosen 0.45 m")
+                             source="chosen, of the order of the tyre's radius (σ_α = C_Fα/C_Fy, cornering "
+                                    "over lateral carcass stiffness: Pacejka 2012, ch. 7)")
     v_low_mps: float = param(2.0, symbol="v_low", unit="m/s",
-                             doc="below it the low-speed damping fades in (½(1 + cos(π|V_x|/v_low)))",
-                             source="Pacejka 2012 §8 (low-speed damping of the transient model); chosen")
+                             doc="below it the low-speed damping fades in, as ½(1 + cos(π·V_x/v_low))",
+                             source="chosen; the low-speed damping of the transient model: Pacejka 2012, ch. 7-8")
     damping_x_ns_per_m: float = param(3000.0, symbol="k_x,low", unit="N·s/m",
                                       doc="low-speed damping of the longitudinal slip velocity at rest",
                                       source="chosen: about critical for a wheel's spin inertia on the tyre's "
@@ -155,8 +155,9 @@ class TyreParams:
         for f in fields(TyreParams):
             lo, hi = _RANGES[f.name]
             m = f.metadata
-            rows.append(f"| `{f.name}` | {m['symbol']} | {m['unit']} | `{f.default!r}` | {lo:g} to {hi:g} | "
-                        f"{m['doc']} | {m['source']} |")
+            cells = [str(c).replace("|", "\\|") for c in (m["symbol"], m["unit"], m["doc"], m["source"])]
+            rows.append(f"| `{f.name}` | {cells[0]} | {cells[1]} | `{f.default!r}` | {lo:g} to {hi:g} | "
+                        f"{cells[2]} | {cells[3]} |")
         return "\n".join(rows)
 
 
