@@ -312,3 +312,26 @@ def test_the_plugin_builds_into_the_cache_and_without_a_compiler_says_so_in_one_
         assert "\n" not in str(error.value) and "install one" in str(error.value)
     finally:
         find_compiler.cache_clear()
+
+
+def test_the_scripted_driver_follows_a_rough_road_on_the_slip_based_tyres():
+    """rough_road (height-field terrain, wheels that leave the ground for moments): the tyres'
+    contacts on the height fields carry the car, the driver keeps within 0.5 m of the path as
+    on the Coulomb tyres, and gets as far."""
+    from biso_cosim.routes import load_route
+    from biso_cosim.vehicle.sim import VehicleSim
+
+    route = load_route("rough_road")
+    progress, rms = {}, {}
+    for tyres in ("coulomb", "magic_formula"):
+        sim = VehicleSim(route, tyres=tyres)
+        cross = []
+        for _ in range(40 * 50):  # 40 s
+            sim.drive()
+            sim.step()
+            cross.append(sim.driver.state.cross_track_m)
+        progress[tyres], rms[tyres] = sim.driver.state.s_m, float(np.sqrt(np.mean(np.square(cross))))
+        if tyres == "magic_formula":
+            assert np.all(np.isfinite(sim.data.plugin_state))
+    assert rms["magic_formula"] < 0.5
+    assert progress["magic_formula"] == pytest.approx(progress["coulomb"], rel=0.02)
