@@ -335,3 +335,31 @@ def test_the_scripted_driver_follows_a_rough_road_on_the_slip_based_tyres():
             assert np.all(np.isfinite(sim.data.plugin_state))
     assert rms["magic_formula"] < 0.5
     assert progress["magic_formula"] == pytest.approx(progress["coulomb"], rel=0.02)
+
+
+def test_the_handling_command_refuses_bad_input_in_one_line(capsys, tmp_path):
+    from biso_cosim.cli import main
+
+    assert main(["vehicle", "handling", "--out", str(tmp_path), "--radius", "5"]) == 2
+    assert capsys.readouterr().err.strip() == ("biso-cosim vehicle: error: --radius must be a number of metres in "
+                                               "[20, 200], got 5")
+    assert main(["vehicle", "params", "--tyres"]) == 0
+    assert capsys.readouterr().out.strip() == TyreParams.table()
+
+
+@pytest.mark.slow
+def test_the_handling_report_writes_its_files(tmp_path):
+    """``biso-cosim vehicle handling`` end to end (about a minute): the report, its JSON and plot."""
+    import json
+
+    from biso_cosim.vehicle.handling import PUBLISHED, handling_report
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = handling_report(tmp_path)
+    assert {p.name for p in tmp_path.iterdir()} == {"handling.md", "handling.json", "handling_circle.png"}
+    assert json.loads((tmp_path / "handling.json").read_text())["figures"] == result["figures"]
+    text = (tmp_path / "handling.md").read_text()
+    assert all(key in text for key in PUBLISHED)
+    assert 0.3 < result["figures"]["understeer_gradient_deg_per_g"] < 1.0
+    assert result["step_cost"]["ratio"] > 0.0

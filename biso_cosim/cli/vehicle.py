@@ -68,9 +68,17 @@ def run_handling(args: argparse.Namespace) -> int:
     import warnings
     from pathlib import Path
 
+    from biso_cosim.cli import UserError
+    from biso_cosim.fmu.native.compiler import CompilerNotFound
     from biso_cosim.routes.route import RouteWarning
     from biso_cosim.vehicle.handling import handling_report
+    from biso_cosim.vehicle.tyres import load_plugin
 
+    try:
+        load_plugin()  # built on first use: without a C compiler, one line saying what to install
+    except CompilerNotFound as exc:
+        raise UserError(str(exc)) from None
+    args.running = True
     with warnings.catch_warnings():
         # the circle's lateral-acceleration cap of the route: the runs hold their own speed
         warnings.simplefilter("ignore", RouteWarning)
