@@ -223,7 +223,9 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
     mjtNum* s = state + w * STRIDE;
     const int c = wheel_contact(d, t->geom[w]);
     if (c < 0) {
-      s[S_KAPPA] = s[S_SLIPY] = s[S_FZ] = s[S_FX] = s[S_FY] = s[S_CONTACT] = 0.0;
+      /* no contact (a wheel hop, or a step without a contact on a height field's kink): no
+         force; the slip states are kept for the landing, as the tyre's deflection would be */
+      s[S_FX] = s[S_FY] = s[S_CONTACT] = 0.0;
       continue;
     }
     const mjContact* con = d->contact + c;
