@@ -149,6 +149,10 @@ def test_the_loads_are_mujocos_contact_forces_and_carry_the_weight():
     assert front_share == pytest.approx((com_x - rear_x) / p["wheelbase_m"], abs=2e-3)
     # the contacts carry no friction of MuJoCo's (condim 1): the plugin's forces are all there is
     assert all(model.geom(name).condim == 1 for name in WHEEL_GEOMS)
+    # the Python view of the plugin state has the C layout
+    from biso_cosim.vehicle.tyres import STATE_STRIDE, _ctypes_library
+
+    assert _ctypes_library().biso_tyres_state_stride() == STATE_STRIDE and model.npluginstate == 4 * STATE_STRIDE
 
 
 def test_a_parked_car_stays_parked():

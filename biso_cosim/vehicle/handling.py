@@ -168,16 +168,16 @@ def progressive_limit(points: list[SteadyPoint], held: list[SteadyPoint]) -> boo
 
 def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0) -> float:
     """Distance (m) from full brakes at ``start_kmh`` to rest on a straight, flat road."""
+    import mujoco
+
     from biso_cosim.vehicle.driver import DriverCommand
     from biso_cosim.vehicle.performance import _straight_road
     from biso_cosim.vehicle.sim import VehicleSim
 
     v0 = start_kmh / 3.6
     sim = VehicleSim(_straight_road(2000.0), tyres=tyres)
-    # up to speed quickly: set the state (the car rolling at v0, wheels turning with it)
+    # up to speed at once: the car rolling at v0, its wheels turning with it
     m, d = sim.model, sim.data
-    import mujoco
-
     d.qvel[0:2] = (v0 * math.cos(sim.route.start_xy_yaw[2]), v0 * math.sin(sim.route.start_xy_yaw[2]))
     for w in ("fl", "fr", "rl", "rr"):
         d.qvel[m.jnt_dofadr[m.joint(f"{w}_spin").id]] = v0 / sim.index.wheel_radius_m
@@ -236,6 +236,7 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
     the road-wheel angle ramped at ``steer_rate_rad_s`` (0.4 rad/s: about 350 °/s at the
     steering wheel of a 15:1 steering), the drive held at its value before the step. The step
     is sized from the linear bicycle model (L/R plus the understeer gradient, if given)."""
+    from biso_cosim.frames import euler_from_quat
     from biso_cosim.vehicle.driver import DriverCommand
     from biso_cosim.vehicle.performance import _straight_road
     from biso_cosim.vehicle.sim import Truth, VehicleSim
@@ -249,7 +250,7 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
     peak = sim.parameters["max_drive_torque_nm"]
     integral, target, drive = 0.0, 0.0, 0.0
     approach = speed_mps / _RAMP_MPS2 + 8.0
-    for k in range(int(round(approach / dt))):  # up to speed, straight (the driver steers)
+    for _ in range(int(round(approach / dt))):  # up to speed, straight (the driver steers)
         command = sim.drive()
         target = min(target + _RAMP_MPS2 * dt, speed_mps)
         error = target - float(sim.data.sensordata[sim.index.rear_axle_vel_b.start])
@@ -265,8 +266,6 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
         rows.append(sim.step())
     truth = Truth.concatenate(rows)
     t = truth.t_s - t_start
-    from biso_cosim.frames import euler_from_quat
-
     roll = euler_from_quat(truth.q_wb)[:, 0]
     ay = truth.specific_force_b[:, 1] - G * np.sin(roll)  # at the IMU site, less gravity's share of the roll
     r = truth.omega_b[:, 2]
