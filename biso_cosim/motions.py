@@ -34,6 +34,10 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
              (rates up to ~1 rad/s, accelerations ~2 g, both aliased at a 200 Hz sample rate)
              and the phone's own field, fixed in body axes (a hard-iron offset that comes and
              goes: 5 µT);
+``moving_start`` recording started in motion: a sensor swung in the hand (0.9 Hz sway, 1.9 Hz
+             bounce) whose horizontal acceleration is at its peak (``accel_g``, default 0.5 g) at
+             t = 0, with slow turns: an estimator that takes its first attitude (and the
+             expected field's dip with it) from the first sample starts tilted by atan(0.5) = 27°;
 ``coning``   classical coning: the body axis z sweeps a cone of half-angle α at Ω;
 ``circle``   level driving on a circle at constant speed (a vehicle's centripetal acceleration
              with an exact speed, for the acceleration compensation of biso_plus).
@@ -326,6 +330,30 @@ def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_r
                      {"vib_hz": vib_hz, "vibrating": env(t) > 0.0})
 
 
+def moving_start(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=0.5, field_w=EARTH_FIELD_W, g=G0):
+    """Started in motion: slow turns (yaw ±35°, pitch and roll ±15° at 0.05–0.12 Hz) while the
+    hand sways the sensor horizontally at 0.9 Hz (a direction from ``seed``) and bounces it at
+    1.9 Hz, cosines of time so that both accelerations are at their peak at t = 0: the
+    horizontal one ``accel_g`` g (position amplitude accel_g·g/(2π·0.9 Hz)² = 0.15 m at 0.5 g),
+    the vertical one a fifth of it. The first sample's specific force is tilted from the
+    vertical by atan(accel_g/(1 + accel_g/5)) (25° at the default)."""
+    t = _time(duration_s, fs_hz)
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi, size=4)
+    yaw = (lambda tt: 0.6 * np.sin(0.3 * tt + ph[0]), lambda tt: 0.18 * np.cos(0.3 * tt + ph[0]))
+    pitch = (lambda tt: 0.25 * np.sin(0.5 * tt + ph[1]), lambda tt: 0.125 * np.cos(0.5 * tt + ph[1]))
+    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    q, om = _euler_chain(t, yaw, pitch, roll)
+    a0 = accel_g * g
+    sway = np.array([math.cos(ph[3]), math.sin(ph[3]), 0.0])
+    # p = −A/ω² cos(ωt): p̈ = A cos(ωt), at its peak at t = 0
+    acc = (a0 * np.cos(2 * np.pi * 0.9 * t))[:, None] * sway[None, :]
+    acc[:, 2] += 0.2 * a0 * np.cos(2 * np.pi * 1.9 * t)
+    earth = np.asarray(field_w, float)
+    return _assemble("moving_start", fs_hz, t, q, om, acc, np.tile(earth, (t.size, 1)), earth, g,
+                     {"accel_g": accel_g})
+
+
 def coning(duration_s=10.0, fs_hz=200.0, *, seed=0, half_angle_rad=0.1, rate_rad_s=2 * np.pi, field_w=EARTH_FIELD_W, g=G0):
     """Coning: q = R_z(Ωt) R_x(α) R_z(−Ωt); body rate magnitude 2Ω sin(α/2)."""
     t = _time(duration_s, fs_hz)
@@ -369,6 +397,7 @@ MOTIONS: dict[str, Callable[..., Motion]] = {
     "translation": translation,
     "near_magnet": near_magnet,
     "vibration": vibration,
+    "moving_start": moving_start,
     "coning": coning,
     "circle": circle,
 }

@@ -319,6 +319,12 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
         mwx, mwy, mwz = _qrot(*lam, mx - o[0], my - o[1], mz - o[2])
         mh = math.sqrt(mwx * mwx + mwy * mwy)
         norm = math.sqrt(mh * mh + mwz * mwz)
+        tc = S["tilt_corr_start"]
+        if st[S["field_known"]] == 2.0 and st[tc] ** 2 + st[tc + 1] ** 2 > c[C["dip_tol"]] ** 2:
+            # provisional, and the tilt corrected by more than θ_δ since: field and heading again
+            st[S["field_known"]] = 0.0
+            st[S["heading_start_s"]] = t
+            st[tc] = st[tc + 1] = 0.0
         if st[S["field_known"]] == 0.0:
             st[S["field_norm"]] = norm if c[C["b_norm"]] < 0.0 else c[C["b_norm"]]
             if math.isnan(c[C["dip"]]):
@@ -327,7 +333,7 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
             else:
                 st[S["field_dip"]], cs = c[C["dip"]], (c[C["dip_c"]], c[C["dip_s"]])
             st[S["field_dip_cs"]:S["field_dip_cs"] + 2] = cs
-            st[S["field_known"]] = 1.0
+            st[S["field_known"]] = 1.0 if t >= c[C["t0"]] else 2.0  # before the tilt settled: provisional
         c0, s0 = st[S["field_dip_cs"]:S["field_dip_cs"] + 2]
         dcos = mh * c0 - mwz * s0
         dsin = -mwz * c0 - mh * s0
@@ -341,10 +347,16 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
         if abs(norm - bn) > c[C["b_tol"]] * bn or dcos < c[C["cos_dip_tol"]] * norm:
             flags |= fl.MAG_DISTURBED
             st[S["mag_rejected_s"]] += h
-            if st[S["mag_rejected_s"]] > c[C["reject_max"]]:
+            if st[S["field_known"]] == 2.0:  # a provisional field: this one, and the heading's start again
+                st[S["heading_start_s"]] = t
+                st[S["tilt_corr_start"]] = st[S["tilt_corr_start"] + 1] = 0.0
+                st[S["field_known"]] = st[S["mag_rejected_s"]] = 0.0
+            elif st[S["mag_rejected_s"]] > c[C["reject_max"]]:
                 st[S["field_known"]] = st[S["mag_rejected_s"]] = 0.0
         else:
             st[S["mag_rejected_s"]] = 0.0
+            if st[S["field_known"]] == 2.0 and t >= c[C["t0"]]:
+                st[S["field_known"]] = 1.0
             af = c[C["a_field"]]
             if c[C["b_norm"]] < 0.0:
                 st[S["field_norm"]] += af * (norm - st[S["field_norm"]])
@@ -359,11 +371,17 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
                 ez = _atan2(mwx * cd - mwy * sd, mwy * cd + mwx * sd)
     # correction
     kt, kh, kp = c[C["k_t"]], c[C["k_h"]], c[C["k_p"]]
-    if kh * (t + c[C["t0"]]) < 1.0:
-        kh = 1.0 / (t + c[C["t0"]])
+    th = st[S["heading_start_s"]]
+    tw = c[C["t0"]] if th == 0.0 else h  # the held heading's weight: τ_a at the start, a sample later
+    head_start = kh * ((t - th) + tw) < 1.0
+    if head_start:
+        kh = 1.0 / ((t - th) + tw)
     if mag_w != 1.0:
         kh *= mag_w
     u = (kt * ex + kp * (ez - ey), kt * ey + kp * (ex - ez), kh * ez + kp * (ey - ex))
+    if st[S["field_known"]] == 2.0:
+        st[S["tilt_corr_start"]] += u[0] * h
+        st[S["tilt_corr_start"] + 1] += u[1] * h
     if u != (0.0, 0.0, 0.0):
         qc = _qmul(*_qexp(u[0] * h, u[1] * h, u[2] * h), *_unit(*qc))
         st[S["q_c"]:S["q_c"] + 4] = qc
@@ -388,7 +406,11 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
     elif acc_ok and t > c[C["t0"]]:
         e = [st[rb + k] - (hm[3 * k] * b[0] + hm[3 * k + 1] * b[1] + hm[3 * k + 2] * b[2]) - u[k] for k in range(3)]
         wm = c[C["bias_w_motion"]]
-        wv = c[C["bias_w_vertical"]] if ez != 0.0 else c[C["bias_w_vertical"]] * 1e6
+        if v_ok:
+            wv = c[C["bias_w_vertical"]] if ez != 0.0 else c[C["bias_w_vertical"]] * 1e6
+        else:  # without speed: the heading's variance, and not during its start
+            wvf = c[C["bias_w_vertical_free"]]
+            wv = wvf / mag_w if ez != 0.0 and not head_start else wvf * 1e6
         _bias_update(c, st, hm, e, (wm, wm, wv))
     st[S["lam"]:S["lam"] + 4] = _unit(*lam)
     return flags
@@ -436,6 +458,7 @@ CASES = {
     "tumble, gated Butterworth, time skew": (
         {"accel_gate_free": 0.003, "mag_time_skew_s": 0.02}, "tumble", fl.ACCEL_GATED, False),
     "static with bias (rest), q0 given": ({"estimate_mag_offset": False, "tau_acc_s": 0.0}, "static", fl.REST, False),
+    "started in motion: provisional field and heading learned again": ({}, "moving_start", 0, False),
 }
 
 
@@ -454,8 +477,8 @@ def test_kernel_equals_the_plain_step_bit_for_bit(case):
             speed = 3.0 + np.sin(np.arange(n) / 100.0)
             speed[rng.integers(0, n, 40)] = np.nan
             imu_flags = (rng.integers(0, 16, n) * (rng.random(n) < 0.02)).astype(np.int64)
-    elif kind == "magnet":
-        m = mo.make_motion("magnet", n / 200.0, 200.0)
+    elif kind in ("magnet", "moving_start"):
+        m = mo.make_motion(kind, n / 200.0, 200.0)
         gyro, accel, mag = m.omega_b.copy(), m.specific_force_b.copy(), m.mag_b.copy()
     else:
         m = mo.make_motion("static", n / 200.0, 200.0)
@@ -476,6 +499,7 @@ def test_kernel_equals_the_plain_step_bit_for_bit(case):
     for bit in (1 << k for k in range(31)):
         assert not must_flag & bit or np.any(flags & bit), bit
     assert (st[S["offset_started"]] == 1.0) == offset_runs
+    assert kind != "moving_start" or st[S["heading_start_s"]] > 0.0  # the start in motion's path taken
 
 
 def test_first_order_exponential_is_the_same_number():

@@ -163,6 +163,13 @@ class BisoPlusParams:
         0.01, symbol="f_z", unit="",
         doc="weight of the heading correction in the bias estimate relative to tilt (0: the "
             "vertical bias is learned at rest only)", source="measured")
+    bias_heading_factor_free: float = param(
+        0.1, symbol="f_zf", unit="",
+        doc="f_z without a speed input, where the heading correction's measurement variance is also "
+            "divided by the heading's weight (σ_h²/(σ_h² + κ D + …)) and the heading's start (k_h raised "
+            "to 1/(t + τ_a), a convergence, not a bias) is not used: a handheld sensor may never rest, "
+            "and a vertical bias b left to the heading loop turns the heading by b/k_h (6° at 0.3 °/s)",
+        source="measured (docs/estimators.md)")
     bias_sigma_rest_rad_s: float = param(
         0.03 * DEG, symbol="σ_br", unit="rad/s",
         doc="steady-state uncertainty of the bias at rest", source="VQF biasSigmaRest")
@@ -241,12 +248,12 @@ STATE_LAYOUT = (
     ("gyro_prev", 3), ("angular_accel_lp", 3), ("mag_offset_b", 3), ("field_i", 3), ("offset_cov", 36),
     ("offset_count", 1), ("field_norm", 1), ("field_dip", 1), ("field_known", 1), ("mag_rejected_s", 1),
     ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2), ("accel_bw_i", 6), ("accel_bw_ready", 1),
-    ("mag_disturbance", 1),
+    ("mag_disturbance", 1), ("heading_start_s", 1), ("tilt_corr_start", 2),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
- _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST, _S_HEAD_T, _S_TILT_CORR) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -258,13 +265,14 @@ _COEF_LAYOUT = (
     ("cdh", 1), ("sdh", 1), ("r_v", 3), ("a_speed", 1), ("g", 1), ("gyro_range", 1), ("accel_range", 1),
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
     ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
+    ("bias_w_vertical_free", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
  _C_BLIM, _C_REST_N, _C_A_REST, _C_REST_W, _C_REST_A, _C_REST_V, _C_BTOL, _C_DTOL, _C_REJ_N, _C_A_FIELD,
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
  _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
- _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2) = (
+ _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -299,7 +307,8 @@ def _kalman_noise(sigma: float, v: float) -> float:
 _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "bias_limit_rad_s",
                  "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
-                 "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s")
+                 "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
+                 "bias_heading_factor_free")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
@@ -327,6 +336,7 @@ _V_BS_INIT = _V_INDEX["bias_sigma_init_rad_s"]
 _V_B_FORGET = _V_INDEX["bias_forgetting_s"]
 _V_BS_MOTION = _V_INDEX["bias_sigma_motion_rad_s"]
 _V_B_HEAD = _V_INDEX["bias_heading_factor"]
+_V_B_HEAD_FREE = _V_INDEX["bias_heading_factor_free"]
 _V_BS_REST = _V_INDEX["bias_sigma_rest_rad_s"]
 _V_BLIM = _V_INDEX["bias_limit_rad_s"]
 _V_REST_T = _V_INDEX["rest_time_s"]
@@ -398,6 +408,7 @@ def biso_plus_derive(v, c):
     c[_C_BV] = (0.1 * DEG) ** two * h / v[_V_B_FORGET]
     c[_C_BWM] = _kalman_noise_jit(v[_V_BS_MOTION], c[_C_BV])
     c[_C_BWV] = c[_C_BWM] / max(v[_V_B_HEAD], 1e-10)
+    c[_C_BWVF] = c[_C_BWM] / max(v[_V_B_HEAD_FREE], 1e-10)
     c[_C_BWR] = _kalman_noise_jit(v[_V_BS_REST], c[_C_BV])
     c[_C_BLIM] = v[_V_BLIM]
     c[_C_REST_N], c[_C_A_REST] = v[_V_REST_T], _alpha_jit(h, v[_V_REST_TAU])
@@ -464,6 +475,7 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     c[_C_BV] = (0.1 * DEG) ** 2 * h / v["bias_forgetting_s"]
     c[_C_BWM] = _kalman_noise(v["bias_sigma_motion_rad_s"], c[_C_BV])
     c[_C_BWV] = c[_C_BWM] / max(v["bias_heading_factor"], 1e-10)
+    c[_C_BWVF] = c[_C_BWM] / max(v["bias_heading_factor_free"], 1e-10)
     c[_C_BWR] = _kalman_noise(v["bias_sigma_rest_rad_s"], c[_C_BV])
     c[_C_BLIM] = v["bias_limit_rad_s"]
     c[_C_REST_N], c[_C_A_REST] = v["rest_time_s"], _alpha(h, v["rest_filter_tau_s"])
@@ -774,6 +786,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     sd = 2.0 * c[_C_SDH] * c[_C_CDH]
     kt, kh0, kp, t0 = c[_C_KT], c[_C_KH], c[_C_KP], c[_C_T0]
     bp0, bv, bwm, bwv, bwr, blim = c[_C_BP0], c[_C_BV], c[_C_BWM], c[_C_BWV], c[_C_BWR], c[_C_BLIM]
+    bwvf = c[_C_BWVF]
     bw_b0, bw_b1, bw_b2, bw_a1, bw_a2 = c[_C_BW], c[_C_BW + 1], c[_C_BW + 2], c[_C_BW + 3], c[_C_BW + 4]
     bw_on = bw_b0 != 0.0
     inv_gate_free = c[_C_INV_GATE_FREE]
@@ -804,7 +817,9 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     t = st[_S_TIME]
     j = _S_BW
     bs0, bs1, bs2, bs3, bs4, bs5 = st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5]
-    bw_ok, mdist = st[_S_BW_OK], st[_S_MDIST]
+    bw_ok, mdist, head_t = st[_S_BW_OK], st[_S_MDIST], st[_S_HEAD_T]
+    tcx, tcy = st[_S_TILT_CORR], st[_S_TILT_CORR + 1]
+    dtol2 = c[_C_DTOL] * c[_C_DTOL]
 
     # from 0, the samples of the start skipped: an index known to be non-negative needs no
     # wraparound of negative indices at each array access
@@ -936,6 +951,12 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
             mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz)
             mh = math.sqrt(mwx * mwx + mwy * mwy)
             norm = math.sqrt(mh * mh + mwz * mwz)
+            if field_ok == 2.0 and tcx * tcx + tcy * tcy > dtol2:
+                # provisional, and the tilt corrected by more than θ_δ since (the start's tilt was
+                # off by that: the dip and the heading measured with it too): learn both again
+                field_ok = 0.0
+                head_t = t
+                tcx = tcy = 0.0
             if field_ok == 0.0:
                 bnorm = norm if learn_norm else c_bnorm
                 if learn_dip:
@@ -943,7 +964,9 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                     dipc, dips = (mh / norm, -mwz / norm) if norm > 0.0 else (1.0, 0.0)
                 else:
                     dip, dipc, dips = c_dip, c_dipc, c_dips
-                field_ok = 1.0
+                # learned before the tilt has settled (the start): provisional (2), since its dip
+                # was measured with that tilt
+                field_ok = 1.0 if t >= t0 else 2.0
             # the dip δ_m = atan2(−m_U, m_H) against the expected δ: norm·(cos, sin)(δ_m − δ) from
             # (cos δ, sin δ) in the state, without an arctangent of the large dip angle
             c0, s0 = dipc, dips
@@ -958,11 +981,18 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
             if abs(norm - bnorm) > btol * bnorm or dcos < cos_dtol * norm:
                 flags |= fl.MAG_DISTURBED
                 rej_t += h
-                if rej_t > rej_n:  # disturbed for too long: take this as the new field
+                # disturbed for too long, or a provisional field (the dip of an accelerated start's
+                # tilt, not of the field): take the present field as the new one
+                if rej_t > rej_n or field_ok == 2.0:
+                    if field_ok == 2.0:  # and the heading of the start with it: its start again
+                        head_t = t
+                        tcx = tcy = 0.0
                     field_ok = 0.0
                     rej_t = 0.0
             else:
                 rej_t = 0.0
+                if field_ok == 2.0 and t >= t0:  # passed with the settled tilt: confirmed
+                    field_ok = 1.0
                 if learn_norm:
                     bnorm += af * (norm - bnorm)
                 if learn_dip:  # δ += α(δ_m − δ), and (cos δ, sin δ) turned with it
@@ -977,8 +1007,14 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
 
         # ---- the correction ω_c = K ε + k_p n × ε as a rotation of q_c (world frame)
         kh = kh0
-        if kh * (t + t0) < 1.0:  # start: heading follows the settling tilt, k_h = max(k_h, 1/(t + t0))
-            kh = 1.0 / (t + t0)
+        # start: heading follows the settling tilt, k_h = max(k_h, 1/(t − t_h + t_w)): from t_h = 0
+        # the first attitude counts as t_w = t0 of measurements (as in the tilt); from a t_h > 0,
+        # when a provisional field was replaced, the heading held was measured with a wrong tilt
+        # and counts as one sample (t_w = h): a running mean of the heading from t_h
+        tw = t0 if head_t == 0.0 else h
+        head_start = kh * ((t - head_t) + tw) < 1.0
+        if head_start:
+            kh = 1.0 / ((t - head_t) + tw)
         if mag_w != 1.0:
             kh *= mag_w
         if kp == 0.0:  # the default: the cross-link terms are ±0 and change no sum
@@ -987,6 +1023,9 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
             ux = kt * ex + kp * (ez - ey)
             uy = kt * ey + kp * (ex - ez)
             uz = kh * ez + kp * (ey - ex)
+        if field_ok == 2.0:  # the tilt correction since the provisional field was learned (world x, y)
+            tcx += ux * h
+            tcy += uy * h
         if ux != 0.0 or uy != 0.0 or uz != 0.0:
             dq0, dq1, dq2, dq3 = _qexp_fast(ux * h, uy * h, uz * h)
             qcw, qcx, qcy, qcz = _unit(qcw, qcx, qcy, qcz)  # (as for q_I: off the chain)
@@ -1023,7 +1062,10 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
             e0 = rblp0 - (rlp0 * bx + rlp1 * by + rlp2 * bz) - ux
             e1 = rblp1 - (rlp3 * bx + rlp4 * by + rlp5 * bz) - uy
             e2 = rblp2 - (rlp6 * bx + rlp7 * by + rlp8 * bz) - uz
-            wv = bwv if ez != 0.0 else bwv * 1e6
+            if v_ok:
+                wv = bwv if ez != 0.0 else bwv * 1e6
+            else:  # the heading's variance (1/mag_w), and not its start's convergence
+                wv = bwvf / mag_w if ez != 0.0 and not head_start else bwvf * 1e6
             updated, bx, by, bz, p00, p01, p02, p11, p12, p22 = _bias_update(
                 bx, by, bz, p00, p01, p02, p11, p12, p22, (rlp0, rlp1, rlp2, rlp3, rlp4, rlp5, rlp6, rlp7, rlp8),
                 e0, e1, e2, bwm, bwm, wv, blim)
@@ -1059,7 +1101,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     st[_S_TIME] = t
     j = _S_BW
     st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5] = bs0, bs1, bs2, bs3, bs4, bs5
-    st[_S_BW_OK], st[_S_MDIST] = bw_ok, mdist
+    st[_S_BW_OK], st[_S_MDIST], st[_S_HEAD_T] = bw_ok, mdist, head_t
+    st[_S_TILT_CORR], st[_S_TILT_CORR + 1] = tcx, tcy
 
 
 @jit

@@ -57,6 +57,7 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     c[C(BIAS_V)] = libm_pow(0.1 * BISO_EST_K_DEG, 2.0) * h / p[P(BIAS_FORGETTING_S)];
     c[C(BIAS_W_MOTION)] = kalman_noise(p[P(BIAS_SIGMA_MOTION_RAD_S)], c[C(BIAS_V)]);
     c[C(BIAS_W_VERTICAL)] = c[C(BIAS_W_MOTION)] / py_max(p[P(BIAS_HEADING_FACTOR)], 1e-10);
+    c[C(BIAS_W_VERTICAL_FREE)] = c[C(BIAS_W_MOTION)] / py_max(p[P(BIAS_HEADING_FACTOR_FREE)], 1e-10);
     c[C(BIAS_W_REST)] = kalman_noise(p[P(BIAS_SIGMA_REST_RAD_S)], c[C(BIAS_V)]);
     c[C(BIAS_LIMIT)] = p[P(BIAS_LIMIT_RAD_S)];
     c[C(REST_TIME)] = p[P(REST_TIME_S)];
@@ -114,6 +115,8 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
                                 "bias_sigma_motion_rad_s, bias_forgetting_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_W_VERTICAL)], "vertical bias measurement noise",
                                 "bias_sigma_motion_rad_s, bias_forgetting_s, bias_heading_factor", msg, size)
+        || biso_est_need_finite(kind, c[C(BIAS_W_VERTICAL_FREE)], "vertical bias measurement noise without speed",
+                                "bias_sigma_motion_rad_s, bias_forgetting_s, bias_heading_factor_free", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_W_REST)], "bias measurement noise at rest",
                                 "bias_sigma_rest_rad_s, bias_forgetting_s", msg, size)
         || biso_est_need_finite(kind, c[C(OFFSET_N)], "offset update interval in samples", "mag_offset_interval_s",
@@ -390,6 +393,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const double kt = c[C(K_T)], kh0 = c[C(K_H)], kp = c[C(K_P)], t0 = c[C(T0)];
         const double bp0 = c[C(BIAS_P0)], bv_ = c[C(BIAS_V)], bwm = c[C(BIAS_W_MOTION)];
         const double bwv = c[C(BIAS_W_VERTICAL)], bwr = c[C(BIAS_W_REST)], blim = c[C(BIAS_LIMIT)];
+        const double bwvf = c[C(BIAS_W_VERTICAL_FREE)], dtol2 = c[C(DIP_TOL)] * c[C(DIP_TOL)];
         const double *bw = c + C(ACC_BW);
         const int bw_on = bw[0] != 0.0;
         const double inv_gate_free = c[C(INV_GATE_FREE_G)];
@@ -412,6 +416,9 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         double field_ok = st[S(FIELD_KNOWN)], rej_t = st[S(MAG_REJECTED_S)];
         double dipc = st[S(FIELD_DIP_CS)], dips = st[S(FIELD_DIP_CS) + 1];
         double t = st[S(TIME_S)];
+        double head_t = st[S(HEADING_START_S)], tcx = st[S(TILT_CORR_START)], tcy = st[S(TILT_CORR_START) + 1];
+        double tw;
+        int head_start;
         double wx, wy, wz, comp_x = 0.0, comp_y = 0.0, comp_z = 0.0, ex = 0.0, ey = 0.0, ez = 0.0;
         double ux, uy, uz, kh, alpha, mag_w = 1.0;
         double *bs = st + S(ACCEL_BW_I);
@@ -542,6 +549,13 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             mw = bq_rot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz);
             mh = sqrt(mw.x * mw.x + mw.y * mw.y);
             norm = sqrt(mh * mh + mw.z * mw.z);
+            if (field_ok == 2.0 && tcx * tcx + tcy * tcy > dtol2) {
+                /* provisional, and the tilt corrected by more than theta_delta since: learn the
+                 * field and the heading again */
+                field_ok = 0.0;
+                head_t = t;
+                tcx = tcy = 0.0;
+            }
             if (field_ok == 0.0) {
                 bnorm = learn_norm ? norm : c_bnorm;
                 if (learn_dip) {
@@ -551,7 +565,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                 } else {
                     dip = c_dip; dipc = c_dipc; dips = c_dips;
                 }
-                field_ok = 1.0;
+                field_ok = t >= t0 ? 1.0 : 2.0;  /* learned before the tilt settled: provisional */
             }
             /* the dip against the expected one: norm (cos, sin)(delta_m - delta) */
             c0 = dipc; s0 = dips;
@@ -568,12 +582,18 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             if (fabs(norm - bnorm) > btol * bnorm || dcos < cos_dtol * norm) {
                 flags |= BISO_EST_FLAG_MAG_DISTURBED;
                 rej_t += h;
-                if (rej_t > rej_n) {  /* disturbed for too long: take this as the new field */
+                /* disturbed for too long, or a provisional field: take this as the new field */
+                if (rej_t > rej_n || field_ok == 2.0) {
+                    if (field_ok == 2.0) {  /* and the heading of the start with it */
+                        head_t = t;
+                        tcx = tcy = 0.0;
+                    }
                     field_ok = 0.0;
                     rej_t = 0.0;
                 }
             } else {
                 rej_t = 0.0;
+                if (field_ok == 2.0 && t >= t0) field_ok = 1.0;  /* passed with the settled tilt */
                 if (learn_norm) bnorm += af * (norm - bnorm);
                 if (learn_dip) {  /* delta += alpha (delta_m - delta), and (cos, sin) turned with it */
                     double e = af * atan2_fast(dsin, dcos);
@@ -589,7 +609,11 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
 
         /* ---- the correction w_c = K e + k_p n x e as a rotation of q_c (world frame) */
         kh = kh0;
-        if (kh * (t + t0) < 1.0) kh = 1.0 / (t + t0);  /* start: heading follows the settling tilt */
+        /* start: heading follows the settling tilt, k_h = max(k_h, 1/(t - t_h + t_w)); t_w = t0 from
+         * t_h = 0, one sample from a t_h > 0 (a provisional field replaced) */
+        tw = head_t == 0.0 ? t0 : h;
+        head_start = kh * ((t - head_t) + tw) < 1.0;
+        if (head_start) kh = 1.0 / ((t - head_t) + tw);
         if (mag_w != 1.0) kh *= mag_w;
         if (kp == 0.0) {
             ux = kt * ex; uy = kt * ey; uz = kh * ez;
@@ -597,6 +621,10 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             ux = kt * ex + kp * (ez - ey);
             uy = kt * ey + kp * (ex - ez);
             uz = kh * ez + kp * (ey - ex);
+        }
+        if (field_ok == 2.0) {  /* the tilt correction since the provisional field was learned */
+            tcx += ux * h;
+            tcy += uy * h;
         }
         if (ux != 0.0 || uy != 0.0 || uz != 0.0) {
             bq dq = qexp_fast(ux * h, uy * h, uz * h);
@@ -624,7 +652,10 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             double e0 = rblp[0] - (rlp[0] * b.bx + rlp[1] * b.by + rlp[2] * b.bz) - ux;
             double e1 = rblp[1] - (rlp[3] * b.bx + rlp[4] * b.by + rlp[5] * b.bz) - uy;
             double e2 = rblp[2] - (rlp[6] * b.bx + rlp[7] * b.by + rlp[8] * b.bz) - uz;
-            double wv = ez != 0.0 ? bwv : bwv * 1e6;
+            double wv;
+            if (v_ok) wv = ez != 0.0 ? bwv : bwv * 1e6;
+            else  /* the heading's variance (1/mag_w), and not its start's convergence */
+                wv = ez != 0.0 && !head_start ? bwvf / mag_w : bwvf * 1e6;
             updated = bias_update(&b, rlp, e0, e1, e2, bwm, bwm, wv, blim);
         }
         q = unit_q(lw, lx, ly, lz);
@@ -641,6 +672,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         st[S(ANGULAR_ACCEL_LP)] = wdx; st[S(ANGULAR_ACCEL_LP) + 1] = wdy; st[S(ANGULAR_ACCEL_LP) + 2] = wdz;
         st[S(OFFSET_COUNT)] = off_k; st[S(FIELD_NORM)] = bnorm; st[S(FIELD_DIP)] = dip;
         st[S(FIELD_KNOWN)] = field_ok; st[S(MAG_REJECTED_S)] = rej_t;
+        st[S(HEADING_START_S)] = head_t; st[S(TILT_CORR_START)] = tcx; st[S(TILT_CORR_START) + 1] = tcy;
         st[S(FIELD_DIP_CS)] = dipc; st[S(FIELD_DIP_CS) + 1] = dips;
         st[S(TIME_S)] = t;
         out->q_wb[0] = q.w; out->q_wb[1] = q.x; out->q_wb[2] = q.y; out->q_wb[3] = q.z;

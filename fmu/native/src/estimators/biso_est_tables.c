@@ -276,6 +276,10 @@ static const biso_est_param params_biso_plus[] = {
      "weight of the heading correction in the bias estimate relative to tilt (0: the vertical bias is learned at rest only)",
      "measured",
      BISO_EST_REAL, 0, 1, 0x1.47ae147ae147bp-7, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"bias_heading_factor_free", "f_zf", "", "",
+     "f_z without a speed input, where the heading correction's measurement variance is also divided by the heading's weight (\317\203_h\302\262/(\317\203_h\302\262 + \316\272 D + \342\200\246)) and the heading's start (k_h raised to 1/(t + \317\204_a), a convergence, not a bias) is not used: a handheld sensor may never rest, and a vertical bias b left to the heading loop turns the heading by b/k_h (6\302\260 at 0.3 \302\260/s)",
+     "measured (docs/estimators.md)",
+     BISO_EST_REAL, 0, 1, 0x1.999999999999ap-4, 0.0, HUGE_VAL, 0, NULL, 0},
     {"bias_sigma_rest_rad_s", "\317\203_br", "rad/s", "rad/s",
      "steady-state uncertainty of the bias at rest",
      "VQF biasSigmaRest",
@@ -385,7 +389,7 @@ static const biso_est_param params_biso_plus[] = {
      "PS-MPU-9250A-01 \302\2473.2 (\302\2612\342\200\246\302\26116 g)",
      BISO_EST_REAL, 1, 1, NAN, 0.0, HUGE_VAL, 1, NULL, 0},
 };
-static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42};
+static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43};
 
 const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
     {"biso", "faithful BISO: Poisson equation with cross-linked positional correction (Aleshkin et al. 2024, reading D)",
@@ -402,5 +406,5 @@ const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
      params_dcm_pi, family_index_dcm_pi, 9, NULL, 0},
     {"biso_plus", "BISO family for vehicles: gyro-bias estimation, acceleration compensation from speed, gating, magnetic disturbance detection, unbiased cross-link",
      BISO_EST_FAMILY_BISO_PLUS, BISO_EST_INPUT_SPEED_MPS | BISO_EST_INPUT_IMU_FLAGS, 1,
-     params_biso_plus, family_index_biso_plus, 43, NULL, 0},
+     params_biso_plus, family_index_biso_plus, 44, NULL, 0},
 };
