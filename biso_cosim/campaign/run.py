@@ -101,25 +101,27 @@ def failed_rows(run: RunSpec, error: str) -> list[dict[str, Any]]:
 
 
 def execute_run(run: RunSpec) -> list[dict[str, Any]]:
-    """Run one co-simulation (:func:`biso_cosim.cosim.run_route`) and return its rows."""
+    """Run one co-simulation (a :class:`biso_cosim.cosim.CoSimulation`, as
+    :func:`~biso_cosim.cosim.run_route` makes it) and return its rows."""
     from numba.core import event
 
     start, cpu_start = time.perf_counter(), time.thread_time()
     with event.install_recorder("numba:compile") as compiled:
         try:
-            from biso_cosim.cosim import run_route
+            from biso_cosim.cosim import CoSimulation
 
-            result = run_route(run.route.load(), duration_s=run.route.duration_s, seed=run.seed,
+            sim = CoSimulation(run.route.load(), duration_s=run.route.duration_s, seed=run.seed,
                                estimators=[e.cosim_spec() for e in run.estimators],
                                sensor_profile=run.sensor.load_profile(), registers=dict(run.sensor.registers),
                                gyro_calibration_s=run.sensor.gyro_calibration_s)
+            result = sim.run()  # as run_route does
             from biso_cosim.runstatus import judge_run
 
             summary = result.summary()
             summary.update(judge_run(result).as_dict())  # completed, partial, rolled_over, left_route, ...
             rows = run_rows(run, summary)
             if run.log_dir is not None:
-                _write_log(result, summary, run.log_dir)
+                _write_log(sim, result, summary, run.log_dir)
         except Exception as exc:  # noqa: BLE001  (a failed run is a result of the campaign)
             last = traceback.extract_tb(exc.__traceback__)[-1]
             rows = failed_rows(run, f"{type(exc).__name__}: {exc} ({os.path.basename(last.filename)}:{last.lineno})")
@@ -130,15 +132,19 @@ def execute_run(run: RunSpec) -> list[dict[str, Any]]:
     return [row | task for row in rows]
 
 
-def _write_log(result, summary: Mapping[str, Any], log_dir: str) -> None:
+def _write_log(sim, result, summary: Mapping[str, Any], log_dir: str) -> None:
+    """The run's log.csv and summary.json as ``biso-cosim run`` writes them (the same writer,
+    with what the run fed its estimators), so that ``biso-cosim estimate`` repeats the run."""
     from pathlib import Path
 
-    from biso_cosim.logs import write_run_log
+    from biso_cosim.logs import run_log_inputs, write_run_log
     from biso_cosim.output import write_text_atomic
 
     out = Path(log_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_run_log(result, out / "log.csv")  # each file whole or absent
+    fed = run_log_inputs(sim, result)
+    write_run_log(result, out / "log.csv", fed)  # each file whole or absent, the log before the summary
+    summary = dict(summary) | {"estimator_inputs": fed.estimators}
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n")
 
 

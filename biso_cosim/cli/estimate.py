@@ -123,10 +123,9 @@ def _declination_deg(path: Path, columns: list[str], option: float | None) -> fl
     return float(values[0])
 
 
-def _read_si(path: Path, columns: list[str], speed_column: str | None, method: str, takes: tuple[str, ...]):
-    from biso_cosim.logs import read_sensor_csv
-
-    data = read_sensor_csv(path)
+def _read_si(log: "_Log", columns: list[str], speed_column: str | None, method: str, takes: tuple[str, ...]):
+    path = log.path
+    data = log.sensor()
     inputs = {}
     if "imu_flags" in columns and "imu_flags" in takes:
         inputs["imu_flags"] = _column(path, columns, "imu_flags", "imu_flags")
@@ -212,10 +211,88 @@ def _count_rows(path: Path) -> int:
         return sum(1 for line in lines if line and not line.startswith("#")) - 1
 
 
+class _Log:
+    """The columns of one SI log, each read once (the estimators of a run share them)."""
+
+    def __init__(self, path: Path, columns: list[str]):
+        self.path, self.columns = path, columns
+        self._sensor = None
+        self._fixes: Any = False
+
+    def sensor(self) -> dict:
+        from biso_cosim.logs import read_sensor_csv
+
+        if self._sensor is None:
+            self._sensor = read_sensor_csv(self.path)
+        return self._sensor
+
+    def fixes(self):
+        """The GNSS fixes of the log's fix columns, or None."""
+        from biso_cosim.logs import read_gnss_fixes
+
+        if self._fixes is False:
+            self._fixes = read_gnss_fixes(self.path)
+        return self._fixes
+
+    def has(self, names) -> bool:
+        return all(name in self.columns for name in names)
+
+
+def _gnss_input(log: _Log, label: str, fed: dict, summary_path: Path | None, several: bool):
+    """The fixes a GNSS-aided estimator is fed from the log's fix columns; None (after a
+    note) when the log has none: a sensor log, not a run's; "skip" for an estimator of an
+    older run whose log holds no fixes. A log whose fixes disagree with its summary is refused."""
+    from biso_cosim.logs import GNSS_COLUMNS
+
+    fixes = log.fixes()
+    wanted = "gnss" in (fed.get("columns") or {})
+    if fixes is None:
+        if wanted:
+            raise UserError(f"{log.path}: {summary_path} says {label} was fed GNSS fixes from the columns "
+                            f"{', '.join(fed['columns']['gnss'])}, which the log does not have")
+        if several:
+            return "skip"
+        print(f"note: {log.path} carries no GNSS fixes (columns {', '.join(GNSS_COLUMNS)}); {label} runs on its "
+              "unaided fall-back (docs/gnss.md)")
+        return None
+    expected = fed.get("gnss_fixes")
+    if expected is not None and len(fixes) != expected:
+        raise UserError(f"{log.path} holds {len(fixes)} GNSS fixes, but {summary_path} says the run fed {label} "
+                        f"{expected}: the log is cut or from another run (give --no-summary to use it anyway)")
+    return fixes
+
+
+def _increments_input(log: _Log, label: str, method: str, form: tuple[str, int], fed: dict,
+                      summary_path: Path | None, several: bool):
+    """The gyro increments (k, m, 3) a coning-algorithm ``gyro_step`` integrates, from the log
+    columns the run's summary names (else those of its form, logs.increment_columns); "skip"
+    for an estimator of an older run whose log holds none."""
+    from biso_cosim.logs import increment_columns, read_log_columns
+
+    named = (fed.get("columns") or {}).get("dtheta_b")
+    names = list(named) if named else list(increment_columns(*form))
+    m = form[1]
+    if len(names) != 3 * m:
+        raise UserError(f"{summary_path}: {label} was fed {len(names)} increment columns, but its gyro_step takes "
+                        f"{m} rows of three ({', '.join(increment_columns(*form))})")
+    if not log.has(names):
+        if several and not named:
+            return "skip"
+        missing = [n for n in names if n not in log.columns]
+        raise UserError(f"{log.path}: {label} ({method}) integrates the gyro increments of its gyro_step, columns "
+                        f"{', '.join(missing)}, which the log does not have (a run logs them when one of its "
+                        "estimators has such a gyro_step)")
+    try:
+        values = read_log_columns(log.path, names, f"{label}'s gyro_step")
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    return values.reshape(values.shape[0], m, 3)
+
+
 def main(args: argparse.Namespace) -> int:
-    from biso_cosim.estimators import estimate_attitude, estimator_inputs, estimator_names, flags
+    from biso_cosim.estimators import estimate_attitude, estimator_inputs, estimator_names, flags, make_estimator
     from biso_cosim.estimators.rawlog import is_raw_header
-    from biso_cosim.logs import write_estimates_table
+    from biso_cosim.logs import ODOMETRY_COLUMN, increment_form, write_estimates_table
     from biso_cosim.output import check_output_file
 
     path = Path(args.input)
@@ -235,26 +312,20 @@ def main(args: argparse.Namespace) -> int:
             raise UserError(f"{path} has {rows} rows, but {summary_path} says the run logged {summary['samples']} "
                             "samples: the log is cut short or from another run (give --no-summary to use it anyway)")
     jobs = _jobs(args, summary)
+    several = len(jobs) > 1
+    log = _Log(path, columns)
     estimates, lines = {}, []
     for label, method, params, inputs_of_run in jobs:
         takes = estimator_inputs(method)
-        if "gnss" in takes or "increments" in inputs_of_run:
-            what = "GNSS fixes" if "gnss" in takes else "the gyro increments of its coning step"
-            if len(jobs) > 1:
-                print(f"skipped {label}: it was fed {what}, which a sensor log does not hold")
-                continue
-            if "gnss" in takes:
-                print(f"note: a sensor log carries no GNSS fixes; {method} runs on its unaided fall-back "
-                      "(docs/gnss.md); use the Python API with GnssFixes for GNSS aiding")
         speed_column = args.speed_column
         if speed_column is None and "speed_mps" in takes:
             speed_column = (inputs_of_run.get("columns") or {}).get("speed_mps")
-            if speed_column is None and "odometry_mps" in columns:
-                speed_column = "odometry_mps"
+            if speed_column is None and ODOMETRY_COLUMN in columns:
+                speed_column = ODOMETRY_COLUMN
         if kind == "raw":
             arrays, t_s, fs_header, inputs, config = _read_raw(path, args)
         else:
-            arrays, t_s, fs_header, inputs, config = _read_si(path, columns, speed_column, method, takes)
+            arrays, t_s, fs_header, inputs, config = _read_si(log, columns, speed_column, method, takes)
         if args.fs is not None:
             fs = args.fs
         elif summary is not None:
@@ -270,16 +341,37 @@ def main(args: argparse.Namespace) -> int:
         params |= parse_params(args.param, "--param")
         if args.declination_deg is not None or "declination_rad" not in params:
             params["declination_rad"] = math.radians(_declination_deg(path, columns, args.declination_deg))
+        fed = []
+        if "gnss" in takes and kind == "si":
+            fixes = _gnss_input(log, label, inputs_of_run, summary_path, several)
+            if isinstance(fixes, str):
+                print(f"skipped {label}: it was fed GNSS fixes, which this log does not hold")
+                continue
+            if fixes is not None:
+                inputs["gnss"] = fixes
+                fed.append(f"{len(fixes)} GNSS fixes from the log")
+        form = increment_form(make_estimator(method, fs, **params)) if "dtheta_b" in takes else None
+        if form is not None:
+            if kind == "raw":
+                raise UserError(f"{label} ({method}): gyro_step {params.get('gyro_step')!r} integrates gyro increments, "
+                                "which a raw register log does not hold (use gyro_step=hold)")
+            dtheta = _increments_input(log, label, method, form, inputs_of_run, summary_path, several)
+            if isinstance(dtheta, str):
+                print(f"skipped {label}: it was fed the gyro increments of its coning step, which this log does not hold")
+                continue
+            inputs["dtheta_b"] = dtheta
+            fed.append(f"gyro increments ({form[0]}, {form[1]} rows) from the log")
         est = estimate_attitude(*arrays, fs=fs, method=method, full_output=True, **config, **params, **inputs)
         estimates[label] = (est.q_wb, est.flags)
         counts = [f"{name} {int(np.count_nonzero(est.flags & bit))}" for bit, name in flags.NAMES.items()
                   if np.any(est.flags & bit)]
-        fed = f", speed from {speed_column}" if "speed_mps" in inputs else ""
+        if "speed_mps" in inputs:
+            fed.insert(0, f"speed from {speed_column}")
         lines.append(f"{label} ({method}) on a {kind} log at {fs:g} Hz, {est.q_wb.shape[0]} samples, declination "
-                     f"{math.degrees(params['declination_rad']):.2f}°{fed}; flagged: "
+                     f"{math.degrees(params['declination_rad']):.2f}°{''.join(', ' + f for f in fed)}; flagged: "
                      f"{', '.join(counts) if counts else 'none'}")
     if not estimates:
-        raise UserError(f"{path}: none of the run's estimators can run on a sensor log")
+        raise UserError(f"{path}: none of the run's estimators can run on this log")
     out = write_estimates_table(out_path, estimates, t_s)
     if summary is not None:
         print(f"inputs from {summary_path}")

@@ -11,7 +11,6 @@ from pathlib import Path
 from biso_cosim.cli import UserError, estimator_spec
 
 BASELINE = "poisson"
-ODOMETRY_COLUMN = "odometry_mps"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -109,32 +108,6 @@ def print_summary(summary: dict) -> None:
               "before driving off), each averaged over 1 s")
 
 
-def estimator_inputs_of(sim) -> dict[str, dict]:
-    """What the run fed each of its estimators besides the sensor samples, for summary.json
-    (``biso-cosim estimate`` reads it back): the parameters the run set (declination, the
-    point where the wheel odometry's speed is measured) and the log columns of the
-    per-sample inputs."""
-    out = {}
-    for key, est in sim.estimators.items():
-        params = getattr(est, "params", None)
-        takes = tuple(getattr(est, "inputs", ()))
-        entry: dict = {"params": {}, "columns": {}}
-        for name in ("declination_rad", "speed_point_b_m"):
-            if params is not None and hasattr(params, name):
-                value = getattr(params, name)
-                entry["params"][name] = list(value) if isinstance(value, tuple) else value
-        if "speed_mps" in takes:
-            entry["columns"]["speed_mps"] = ODOMETRY_COLUMN
-        if "imu_flags" in takes:
-            entry["columns"]["imu_flags"] = "imu_flags"
-        if "gnss" in takes:
-            entry["gnss"] = "GNSS fixes: not in the log"
-        if "dtheta_b" in takes and getattr(params, "gyro_step", "hold") != "hold":
-            entry["increments"] = "gyro increments: not in the log"
-        out[key] = entry
-    return out
-
-
 def _output_files(args: argparse.Namespace, out: Path, inputs: list[str]) -> None:
     """--out checked before any work: a directory that can be written in, and none of the
     files the run writes there an input."""
@@ -148,6 +121,7 @@ def _output_files(args: argparse.Namespace, out: Path, inputs: list[str]) -> Non
 def main(args: argparse.Namespace) -> int:
     from biso_cosim.compiling import compile_notice
     from biso_cosim.cosim import DEFAULT_ESTIMATORS, DEFAULT_SENSOR_PROFILE, CoSimulation
+    from biso_cosim.logs import run_log_inputs
     from biso_cosim.routes import load_route
     from biso_cosim.runstatus import EXIT_INTERRUPTED, EXIT_RUN_FAILED, interrupted, judge_run
 
@@ -177,10 +151,11 @@ def main(args: argparse.Namespace) -> int:
     status = interrupted(result) if result.interrupted else judge_run(result)
     summary = result.summary()
     summary.update(status.as_dict())
-    summary["estimator_inputs"] = estimator_inputs_of(sim)
+    fed = run_log_inputs(sim, result)  # what the run fed its estimators: the log's columns, the summary's record
+    summary["estimator_inputs"] = fed.estimators
     _print_status(status, args)
     print_summary(summary)
-    written = _write_outputs(sim, result, summary, out, args)
+    written = _write_outputs(fed, result, summary, out, args)
     if written is None:
         return EXIT_INTERRUPTED
     print("wrote " + ", ".join(str(p) for p in written))
@@ -203,7 +178,7 @@ def _print_status(status, args: argparse.Namespace) -> None:
         print(f"run {status.status}: {status.reason}")
 
 
-def _write_outputs(sim, result, summary: dict, out: Path, args: argparse.Namespace) -> list[Path] | None:
+def _write_outputs(fed, result, summary: dict, out: Path, args: argparse.Namespace) -> list[Path] | None:
     """summary.json, log.csv and the plots, each whole or not at all; None when Ctrl-C cut
     the writing short (the files written so far are whole)."""
     from biso_cosim.logs import write_run_log
@@ -213,9 +188,7 @@ def _write_outputs(sim, result, summary: dict, out: Path, args: argparse.Namespa
     written: list[Path] = []
     try:
         if not args.no_log:  # the log before the summary that counts its rows
-            takes_speed = any("speed_mps" in getattr(e, "inputs", ()) for e in sim.estimators.values())
-            odometry = sim.odometry_mps(result.truth) if takes_speed else None  # what the run fed them
-            written.append(write_run_log(result, out / "log.csv", odometry_mps=odometry))
+            written.append(write_run_log(result, out / "log.csv", fed))
         written.append(write_text_atomic(out / "summary.json", json.dumps(summary, indent=2, default=str) + "\n"))
         written.append(plot_run(result, out / "attitude.png"))
         if result.navigation:
