@@ -478,3 +478,60 @@ def test_route_files_are_written_whole(tmp_path):
             temporary.write_text("half a fi")
             raise RuntimeError("interrupted")
     assert out.read_text() == "old" and list(out.parent.iterdir()) == [out]
+
+
+def _curve_allowed(route):
+    """The fastest each waypoint's leg may be driven anywhere (the curvature limit of the
+    route's own path, by which loading warns of a speed never reached)."""
+    from biso_cosim.routes.path import curvature_speed_limit
+
+    n = len(route.waypoints)
+    allowed = np.full(n, -np.inf)
+    np.maximum.at(allowed, route.path.leg % n, curvature_speed_limit(route.path, route.driving.max_lateral_accel_mps2))
+    return np.where(np.isfinite(allowed), allowed, np.inf)  # an open route's last waypoint has no leg
+
+
+@pytest.mark.parametrize("case", ["comma2k19", "urban", "mountain"])
+def test_speeds_beyond_the_curves_lateral_limit_are_capped_at_import(case):
+    """The shipped real excerpt with 1 m waypoints and a 1 m/s² limit (its on-ramp then
+    curves all along some legs faster than that allows), and recorded-like tracks at the
+    default 2.5 m/s²: the import caps those speeds with one warning; loading the route is
+    silent; the speed profile the driver follows is the one the recorded speeds gave."""
+    if case == "comma2k19":
+        track, options = read_track(COMMA), {"spacing_m": 1.0, "max_lateral_accel_mps2": 1.0}
+    else:
+        track = synthetic_track(case, length_m=450.0 if case == "urban" else 600.0, rate_hz=1.0 if case == "urban"
+                                else 10.0, seed=21 if case == "urban" else 22, horizontal_noise_m=3.0,
+                                vertical_noise_m=4.0, dropouts=1).track
+        options = {}
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        result = convert_track(track, **options)
+    capping = [str(w.message) for w in record if "is never reached" in str(w.message)]
+    assert result.curve_capped >= 2 and len(capping) == 1
+    assert re.search(rf"waypoint\[\d+\]\.speed_mps = [\d.]+ m/s as recorded \(and {result.curve_capped - 1} more "
+                     r"waypoint\(s\)\) is never reached: .* capped to that in the route", capping[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)  # no warning at all when loaded
+        route = parse_route(result.data, source=track.source)
+    speeds = np.array([w.speed_mps for w in route.waypoints])
+    allowed = _curve_allowed(route)
+    assert np.all(speeds <= allowed)
+    # the recorded speeds: the same import with a lateral limit that caps nothing (the
+    # waypoints do not depend on it)
+    loose = dict(options, max_lateral_accel_mps2=car_limits().lateral_accel_mps2)
+    recorded, recorded_route = quiet_import(track, **loose)
+    assert recorded.curve_capped == 0
+    assert [(w["x_m"], w["y_m"]) for w in recorded.data["waypoint"]] == [(w.x_m, w.y_m) for w in route.waypoints]
+    v_rec = np.array([w["speed_mps"] for w in recorded.data["waypoint"]])
+    capped = v_rec > allowed * (1 - 1e-9)
+    assert capped.sum() == result.curve_capped
+    np.testing.assert_array_equal(speeds[~capped], v_rec[~capped])
+    np.testing.assert_allclose(speeds[capped], np.floor(allowed[capped] * 100) / 100)
+    # those recorded speeds, loaded at the import's limit, are what the route warned of
+    uncapped = dict(result.data, waypoint=[dict(w, speed_mps=float(v)) for w, v in zip(result.data["waypoint"], v_rec)])
+    with pytest.warns(RouteWarning, match=r"is never reached: its leg curves all along"):
+        before = parse_route(uncapped, source=track.source)
+    # ... and the driver's speed profile is the same, to the 0.01 m/s of the rounding
+    np.testing.assert_allclose(route.speed_with_stops_mps, before.speed_with_stops_mps, rtol=0, atol=0.01)
+    assert route.nominal_duration_s == pytest.approx(before.nominal_duration_s, rel=1e-3)

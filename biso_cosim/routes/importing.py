@@ -26,7 +26,10 @@ The steps, each with its reason:
    of a curve departs from it by at most ``SAGITTA_M``), and at every stop.
 7. Leg speeds from the time stamps (or a ``speed_mps`` column), smoothed over
    ``speed_smoothing_m``, capped at the car's top speed (with a warning); else ``speed_mps``.
-   Either way the driver slows for curvature (``max_lateral_accel_mps2``).
+   Either way the driver slows for curvature (``max_lateral_accel_mps2``), and a leg that
+   curves all along gets the speed its curvature allows (a recording often corners harder
+   than the 2.5 m/s² default): capped here, with one warning for the import, so that loading
+   the route does not warn of speeds it never reaches (the driven profile is the same).
 
 The route's site (latitude, longitude and height of its ground plane; date from the track's
 first time stamp, else the default) sets the Earth's magnetic field and the GNSS location.
@@ -110,6 +113,9 @@ class ImportedTrack:
     """The positions' smoothing used (more than asked when the track turned too tightly)."""
     height_smoothing_m: float | None
     notes: tuple[str, ...] = field(default_factory=tuple)
+    curve_capped: int = 0
+    """Waypoints whose recorded speed their leg's curvature does not allow anywhere
+    (``max_lateral_accel_mps2``): capped to the fastest it allows."""
 
 
 def _positive(label: str, value: float) -> float:
@@ -524,10 +530,50 @@ def convert_track(track: Track, *, name: str | None = None, description: str | N
                 points.append(points[0])
             data["terrain"] = {"feature": [{"type": "road", "points": points, "half_width_m": road_half_width_m,
                                             "shoulder_m": ROAD_SHOULDER_M}]}
+    report(0.85, "speeds in curves")
+    capped, recorded_lateral, a_lat = _cap_in_curves(data)
+    if capped:
+        k, recorded, allowed = capped[0]
+        more = f" (and {len(capped) - 1} more waypoint(s))" if len(capped) > 1 else ""
+        warn(f"waypoint[{k}].speed_mps = {recorded:g} m/s as recorded{more} is never reached: its leg curves all "
+             f"along (radius {allowed ** 2 / a_lat:.1f} m at the widest), which allows at most {allowed:.2f} m/s at "
+             f"max_lateral_accel_mps2 = {a_lat:g}; capped to that in the route (the car drives it so anyway; the "
+             f"recording corners at up to {recorded_lateral:.1f} m/s², which a larger max_lateral_accel_mps2 "
+             "drives as recorded)")
     report(0.9, "checking the route")
     return ImportedTrack(data=data, length_m=route_length, points_read=n_read, points_used=int(p.x.shape[0]),
                          repeated_dropped=repeated, standing_dropped=standing, stops=tuple(stops),
-                         smoothing_m=used_smoothing, height_smoothing_m=used_height, notes=tuple(notes))
+                         smoothing_m=used_smoothing, height_smoothing_m=used_height, notes=tuple(notes),
+                         curve_capped=len(capped))
+
+
+def _cap_in_curves(data: dict) -> tuple[list[tuple[int, float, float]], float, float]:
+    """Cap each waypoint's speed at the fastest its leg may be driven anywhere by the
+    curvature limit ``sqrt(max_lateral_accel_mps2/|κ|)`` of the route's own path (the
+    bound by which loading a route warns of a speed that is never reached), rounded down to
+    the centimetre per second; the speed profile the driver follows stays as it was (it
+    drives such a leg at the curvature limit either way). Returns (index, recorded speed,
+    the leg's limit) of each waypoint capped, the largest lateral acceleration their
+    recorded speeds implied and the lateral limit (m/s²)."""
+    from biso_cosim.routes.path import curvature_speed_limit
+    from biso_cosim.routes.route import Waypoint
+
+    # the route's path depends on the waypoints' places alone (the whole route, parsed, is
+    # checked when it is loaded); an imported track never reverses, so it has no cusps
+    n = len(data["waypoint"])
+    path = Route(name=data["name"], description="", closed=data["closed"],
+                 waypoints=tuple(Waypoint(w["x_m"], w["y_m"]) for w in data["waypoint"])).path
+    a_lat = min(data["driving"]["max_lateral_accel_mps2"], car_limits().lateral_accel_mps2)  # as the route caps it
+    allowed = np.full(n, -np.inf)
+    np.maximum.at(allowed, path.leg % n, curvature_speed_limit(path, a_lat))
+    capped, worst = [], 0.0
+    for k, (wp, fastest) in enumerate(zip(data["waypoint"], allowed.tolist())):
+        speed = wp["speed_mps"]
+        if math.isfinite(fastest) and fastest < speed * (1.0 - 1e-9):
+            wp["speed_mps"] = math.floor(fastest * 100.0) / 100.0
+            capped.append((k, speed, fastest))
+            worst = max(worst, a_lat * (speed / fastest) ** 2)  # v²/R, R = fastest²/a_lat
+    return capped, worst, a_lat
 
 
 def track_to_route_data(track: Track, **options) -> dict:
