@@ -1,43 +1,26 @@
 """The run log (``log.csv``), what a run fed its estimators, and the columns that
-``biso-cosim estimate`` reads back to repeat them (docs/logs.md).
+``biso-cosim estimate`` reads back to repeat them.
 
-One row per sensor output sample. Columns, in order:
+One row per sensor output sample: the time, the truth (attitude, IMU position, speed), the
+sensor readings (body axes: x forward, y left, z up), what the estimators were fed besides
+the readings, and each estimator's ``q_wb``, angles and flags. The columns, their units and
+when each appears are in docs/logs.md (tested against what this module writes). What an
+estimator reads is written with 17 significant digits: read back, it is the same double,
+so that ``biso-cosim estimate`` on the log repeats the run's estimates exactly. The columns
+only some runs need appear only in those runs' logs:
 
-| column | unit | what |
-|---|---|---|
-| ``t_s`` | s | sample time stamp |
-| ``true_qw``, ``true_qx``, ``true_qy``, ``true_qz`` | 1 | true ``q_wb`` (body → ENU) |
-| ``true_roll_deg``, ``true_pitch_deg``, ``true_heading_deg`` | ° | true angles (ISO 8855; heading clockwise from North) |
-| ``pos_e_m``, ``pos_n_m``, ``pos_u_m`` | m | IMU position in the route's local ENU frame |
-| ``speed_mps`` | m/s | forward speed of the rear axle (truth) |
-| ``odometry_mps`` | m/s | the wheel odometry fed to estimators that take a speed (front wheels' spin × radius × cos steer), when the run had such an estimator |
-| ``gyro_x_rad_s`` … ``gyro_z_rad_s`` | rad/s | gyro reading, body axes |
-| ``accel_x_m_s2`` … ``accel_z_m_s2`` | m/s² | accelerometer reading (specific force), body axes |
-| ``mag_x_ut`` … ``mag_z_ut`` | µT | magnetometer reading, body axes |
-| ``dtheta1_x_rad`` … ``dtheta<r>_z_rad_s<r-1>`` | rad·s^(j−1) | the gyro's j-fold integrals ΔΘ^j over the sample interval (j = 1…r), when an estimator's ``gyro_step`` is a coning algorithm of the multiple-integral form (Litmanovich 2002) |
-| ``dtheta_sub1_x_rad`` … ``dtheta_sub<m>_z_rad`` | rad | the gyro's increments over the m equal parts of the sample interval, when a ``gyro_step`` takes sub-interval increments |
-| ``imu_flags`` | | sensor flag bits (saturation, overflow) |
-| ``declination_deg`` | ° | magnetic declination at the site, east positive (the same in every row) |
-| ``gnss_t_s``, ``gnss_t_arrival_s`` | s | a GNSS fix's time of validity and arrival, on the row of the first sample at or after its arrival (empty on the other rows), when the run had a receiver |
-| ``gnss_pos_e_m``, ``gnss_pos_n_m``, ``gnss_pos_u_m`` | m | the fix's antenna position, route ENU (nan without a fix) |
-| ``gnss_vel_e_mps``, ``gnss_vel_n_mps``, ``gnss_vel_u_mps`` | m/s | the fix's velocity, ENU (nan without a fix) |
-| ``gnss_valid`` | | 1 a fix, 0 none (outage, reacquisition) |
-| ``<est>_qw`` … ``<est>_qz`` | 1 | each estimator's ``q_wb`` |
-| ``<est>_roll_deg``, ``<est>_pitch_deg``, ``<est>_heading_deg`` | ° | its angles |
-| ``<est>_flags`` | | its flag bits |
+* ``odometry_mps``: the wheel odometry, with an estimator that takes ``speed_mps``;
+* the gyro increments of a coning-algorithm ``gyro_step`` (Litmanovich 2002; docs/design.md
+  §7): ``dtheta<j>_<axis>_rad[_s<j-1>]``, the j-fold integrals ΔΘ^j, or
+  ``dtheta_sub<j>_<axis>_rad``, the sub-interval increments (:func:`increment_columns`);
+* the receiver's fixes (:data:`GNSS_COLUMNS`), with a GNSS receiver: each fix on the row of
+  the first sample at or after its arrival, where an estimator uses it, empty cells on the
+  other rows (the rare second fix of one sample interval, from a receiver faster than the
+  sensor, takes the next row: the fix's own ``gnss_t_arrival_s`` is what counts); fixes
+  that arrive after the last sample were never used and are not logged.
 
-What the estimators were fed (the sensor readings, the odometry, the increments, the
-declination, the fixes' times and velocities) is written with 17 significant digits: read
-back, it is the same double, so that ``biso-cosim estimate`` on the log repeats the run's
-estimates exactly. Body axes are x forward, y left, z up. The columns that only some runs
-need (odometry, increments, fixes) appear only in those runs' logs. The sensor columns are
-also the input format of ``biso-cosim estimate`` (``t_s``, ``imu_flags`` and
-``declination_deg`` optional there), so an estimator can be re-run on a log.
-
-A fix stands on the row of the first sample at or after its arrival, which is where an
-estimator uses it; the rare second fix of one sample interval (a receiver faster than the
-sensor) takes the next row: the fix's own ``gnss_t_arrival_s`` is what counts. Fixes that
-arrive after the last sample were never used and are not logged.
+The sensor columns are also the input format of ``biso-cosim estimate`` for any recording
+(``t_s``, ``imu_flags`` and ``declination_deg`` optional there).
 """
 
 from __future__ import annotations

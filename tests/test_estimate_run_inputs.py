@@ -175,3 +175,20 @@ def test_a_cut_or_inconsistent_log_is_refused(gnss_run, tmp_path, capsys):
     # by name without a summary: the increments of the step's form, or a one-line refusal
     err = refused(nodt / "log.csv", "--no-summary", "--method", "biso", "--param", "gyro_step=two_sample")
     assert "columns dtheta_sub1_x_rad, dtheta_sub1_y_rad" in err and "which the log does not have" in err
+
+
+def test_docs_logs_names_every_column_a_run_writes(gnss_run):
+    """docs/logs.md lists each column of the log (the estimators' own by their pattern)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "logs.md").read_text()
+    header = (gnss_run / "log.csv").read_text().split("\n", 1)[0].split(",")
+    labels = _summary(gnss_run)["estimators"]
+    for name in header:
+        if any(name.startswith(f"{key}_") for key in labels):
+            continue  # <est>_qw ... <est>_flags
+        if name.startswith("dtheta"):
+            continue  # by pattern, below
+        assert f"`{name}`" in text, name
+    for name in ("dtheta1_x_rad", "dtheta2_x_rad_s", "dtheta3_x_rad_s2", "dtheta4_x_rad_s3", "dtheta_sub1_x_rad"):
+        assert name in text and name in increment_columns("multiple", 4) + increment_columns("sub", 1)

@@ -25,8 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
             "overflow), as in a run's log.csv. Raw logs: the MPU-9250 and AK8963 16-bit words "
             "accel_x_raw ... mag_z_raw and the status bytes ak_st1, ak_st2 (docs/estimators.md), with "
             "the register configuration, ASA bytes and mounting in '# key = value' header lines or "
-            "the options below. Writes t_s (if given), q_wb (w, x, y, z, body -> ENU), roll, pitch, "
-            "heading in degrees and the per-sample flags."
+            "the options below. On a run's log.csv with its summary.json beside it, every estimator "
+            "of the run is repeated bit for bit with what the run fed it: the wheel odometry (odometry_mps), "
+            "the GNSS fixes of GNSS-aided estimators (gnss_t_s, gnss_t_arrival_s, gnss_vel_e_mps ... on the "
+            "rows where a fix arrives), the gyro increments of a coning-algorithm gyro_step (dtheta1_x_rad ... "
+            "or dtheta_sub1_x_rad ...), the declination, the sensor flags (docs/logs.md); a log cut short or "
+            "disagreeing with its summary is refused. Writes t_s (if given), q_wb (w, x, y, z, body -> ENU), "
+            "roll, pitch, heading in degrees and the per-sample flags."
         ),
     )
     p.add_argument("input", help="sensor log, CSV")
