@@ -535,11 +535,12 @@ def convert_track(track: Track, *, name: str | None = None, description: str | N
     if capped:
         k, recorded, allowed = capped[0]
         more = f" (and {len(capped) - 1} more waypoint(s))" if len(capped) > 1 else ""
-        warn(f"waypoint[{k}].speed_mps = {recorded:g} m/s as recorded{more} is never reached: its leg curves all "
+        source = ("as recorded", f"the recording corners at up to {recorded_lateral:.1f} m/s², which a larger "
+                  "max_lateral_accel_mps2 drives as recorded") if v is not None else ("(speed_mps: the track has no times)", "")
+        warn(f"waypoint[{k}].speed_mps = {recorded:g} m/s {source[0]}{more} is never reached: its leg curves all "
              f"along (radius {allowed ** 2 / a_lat:.1f} m at the widest), which allows at most {allowed:.2f} m/s at "
-             f"max_lateral_accel_mps2 = {a_lat:g}; capped to that in the route (the car drives it so anyway; the "
-             f"recording corners at up to {recorded_lateral:.1f} m/s², which a larger max_lateral_accel_mps2 "
-             "drives as recorded)")
+             f"max_lateral_accel_mps2 = {a_lat:g}; capped to that in the route (the car drives it so anyway"
+             + (f"; {source[1]})" if source[1] else ")"))
     report(0.9, "checking the route")
     return ImportedTrack(data=data, length_m=route_length, points_read=n_read, points_used=int(p.x.shape[0]),
                          repeated_dropped=repeated, standing_dropped=standing, stops=tuple(stops),
