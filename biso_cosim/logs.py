@@ -35,8 +35,8 @@ import numpy as np
 from biso_cosim.metrics import attitude_angles_deg
 from biso_cosim.output import atomic_output
 
-__all__ = ["SENSOR_COLUMNS", "GNSS_COLUMNS", "ODOMETRY_COLUMN", "RunLogInputs", "increment_columns", "increment_form", "run_log_inputs",
-           "write_run_log", "read_sensor_csv", "read_log_columns", "read_gnss_fixes", "write_estimates_csv",
+__all__ = ["SENSOR_COLUMNS", "GNSS_COLUMNS", "ODOMETRY_COLUMN", "RunLogInputs", "increment_columns", "increment_form",
+           "run_log_inputs", "write_run_log", "read_sensor_csv", "read_log_columns", "read_gnss_fixes", "write_estimates_csv",
            "write_estimates_table"]
 
 # what the estimators were fed is written with 17 significant digits: read back, it is the

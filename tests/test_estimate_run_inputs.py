@@ -60,8 +60,9 @@ def test_estimate_repeats_gnss_aided_and_coning_step_estimators_bit_for_bit(gnss
     bare.mkdir()
     logged.drop(columns=list(GNSS_COLUMNS)).to_csv(bare / "log.csv", index=False)
     capsys.readouterr()
+    declination = summary["estimator_inputs"]["gnss_kalman"]["params"]["declination_rad"]
     assert cli_main(["estimate", str(bare / "log.csv"), "--out", str(unaided), "--method", "gnss_kalman",
-                     "--param", f"declination_rad={summary['estimator_inputs']['gnss_kalman']['params']['declination_rad']!r}"]) == 0
+                     "--param", f"declination_rad={declination!r}"]) == 0
     assert "carries no GNSS fixes" in capsys.readouterr().out
     assert not np.array_equal(pd.read_csv(unaided)["gnss_kalman_qx"], logged["gnss_kalman_qx"])
     # one estimator by name takes the run's inputs too

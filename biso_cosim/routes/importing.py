@@ -50,7 +50,7 @@ import numpy as np
 
 from biso_cosim.output import atomic_output
 from biso_cosim.routes.limits import car_limits
-from biso_cosim.routes.route import Route, RouteWarning, parse_route
+from biso_cosim.routes.route import Route, RouteWarning, Waypoint, parse_route
 from biso_cosim.routes.smoothing import bin_along, smooth_along, whittaker, whittaker_lambda
 from biso_cosim.routes.stops import find_stops
 from biso_cosim.routes.tracks import MAX_FILE_MB, Track, read_track
@@ -535,8 +535,9 @@ def convert_track(track: Track, *, name: str | None = None, description: str | N
     if capped:
         k, recorded, allowed = capped[0]
         more = f" (and {len(capped) - 1} more waypoint(s))" if len(capped) > 1 else ""
-        source = ("as recorded", f"the recording corners at up to {recorded_lateral:.1f} m/s², which a larger "
-                  "max_lateral_accel_mps2 drives as recorded") if v is not None else ("(speed_mps: the track has no times)", "")
+        source = (("as recorded", f"the recording corners at up to {recorded_lateral:.1f} m/s², which a larger "
+                   "max_lateral_accel_mps2 drives as recorded") if v is not None
+                  else ("(speed_mps: the track has no times)", ""))
         warn(f"waypoint[{k}].speed_mps = {recorded:g} m/s {source[0]}{more} is never reached: its leg curves all "
              f"along (radius {allowed ** 2 / a_lat:.1f} m at the widest), which allows at most {allowed:.2f} m/s at "
              f"max_lateral_accel_mps2 = {a_lat:g}; capped to that in the route (the car drives it so anyway"
@@ -557,7 +558,6 @@ def _cap_in_curves(data: dict) -> tuple[list[tuple[int, float, float]], float, f
     the leg's limit) of each waypoint capped, the largest lateral acceleration their
     recorded speeds implied and the lateral limit (m/s²)."""
     from biso_cosim.routes.path import curvature_speed_limit
-    from biso_cosim.routes.route import Waypoint
 
     # the route's path depends on the waypoints' places alone (the whole route, parsed, is
     # checked when it is loaded); an imported track never reverses, so it has no cusps
