@@ -28,8 +28,9 @@ import mujoco
 import numpy as np
 
 from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_RECEIVER,
-                             SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan, PeriodSamples, PeriodWork,
-                             PhysicsRows, SampleOutputs, SensorArrays, TruthArrays, loop_kernel, prepare, sensor_inputs)
+                             SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan, PeriodSamples,
+                             PeriodWork, PhysicsRows, SampleOutputs, SensorArrays, TruthArrays, loop_kernel, prepare,
+                             sensor_inputs)
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
@@ -271,8 +272,8 @@ class CoSimulation:
     Attributes
     ----------
     fast_path : True (default): each period (``step()``) or block of periods (``run()``) is
-        one call of ``biso_cosim.loop.loop_kernel`` running the sensor, every estimator that
-        declares a ``loop_kernel`` and every attached consumer; False: the general path, one
+        one call of ``biso_cosim.loop.loop_kernel`` running the sensor, the GNSS receiver,
+        every estimator that declares a ``loop_kernel`` and every attached consumer; False: the general path, one
         Python call per stage (the same numbers bit for bit: for tests and debugging). Local
         magnetic disturbances and a start-up gyro calibration take the general path.
     """
@@ -615,8 +616,8 @@ class CoSimulation:
         if self._wants_odometry and odometry is None:
             odometry = self.odometry_mps(at_samples)
         speed = odometry if self._wants_odometry else np.empty(0)
-        view = PeriodSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8), flags[:k],
-                             speed[:k] if speed.shape[0] else speed, at_samples.packed,
+        view = PeriodSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8),
+                             flags[:k], speed[:k] if speed.shape[0] else speed, at_samples.packed,
                              NO_RECEIVER[2].fixes if fix_rows is None else np.ascontiguousarray(fix_rows))
         for work in self._consumers:
             work.kernel(view, tuple(outputs[key].q_wb for key in work.estimates), work.arrays)
@@ -695,21 +696,22 @@ class CoSimulation:
         vehicle's rows; else copied into the plan's own rows), gathered once for each kind
         and number of rows and reused while the versions hold."""
         vehicle = self.vehicle
+        source = vehicle.history_arrays
         mode = "history" if rows is None else "packed" if packed_rows else "rows"
-        key = (mode, vehicle._rows.shape[0] if rows is None else rows.shape[0])
+        key = (mode, source.rows.shape[0] if rows is None else rows.shape[0])
         period = self._periods.get(key)
         if period is not None and period.versions == self._versions():
             if rows is not None:
                 np.copyto(period.physics.rows, rows)
             return period
-        history = vehicle._history if rows is None else _NO_HISTORY
-        rows = vehicle._rows if rows is None else rows.copy()
+        history = source.history if rows is None else _NO_HISTORY
+        rows = source.rows if rows is None else rows.copy()
         n = rows.shape[0]
         orders, subs = self._increment_orders, self._subintervals
         floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
         bound = flags.shape[0]
-        physics = PhysicsRows(history, vehicle._history_layout, vehicle._warnings, vehicle._sensordata, rows,
-                              _TRUTH_GATHER if packed_rows else vehicle._gather, float(vehicle.physics_rate_hz))
+        physics = PhysicsRows(history, source.layout, source.warnings, source.sensordata, rows,
+                              _TRUTH_GATHER if packed_rows else source.gather, float(vehicle.physics_rate_hz))
         sensor = SensorArrays(*self.imu.loop_arrays(), orders, subs, float(self._imu_t0_s))
         truth = TruthArrays(self.magnetic.earth.field_enu_ut, self._before, np.empty((n, Truth.WIDTH)),
                             np.empty((bound, Truth.WIDTH)), float(vehicle.index.wheel_radius_m),
@@ -731,10 +733,11 @@ class CoSimulation:
         if self.gnss_receiver is not None:
             rx = type(self.gnss_receiver)
             receiver = (rx.loop_check, rx.loop_kernel, self.gnss_receiver.loop_arrays(n))
-        plan = prepare(PeriodPlan(physics, sensor, truth, outputs, self._clock, receiver,
-                                  tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop), consumers or ()))
-        period = _Period(plan, physics, truth, outputs, None if receiver is NO_RECEIVER else (receiver[2].fixes, self._clock),
-                         tuple(in_loop), consumers is not None, self._versions(), orders, subs)
+        estimators = tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop)
+        plan = prepare(PeriodPlan(physics, sensor, truth, outputs, self._clock, receiver, estimators, consumers or ()))
+        fixes = None if receiver is NO_RECEIVER else (receiver[2].fixes, self._clock)
+        period = _Period(plan, physics, truth, outputs, fixes, tuple(in_loop), consumers is not None, self._versions(),
+                         orders, subs)
         self._periods[key] = period
         return period
 
@@ -752,9 +755,10 @@ class CoSimulation:
         clock[CLOCK_T_START], clock[CLOCK_FIRST_STEP] = t_start, first_step
         status, k = loop_kernel(period.plan)
         if status == SENSE_RESTEP:  # the history did not hold the rows (nothing changed): the period stepped again
-            return self._sense_loop(self.vehicle._restep(self.vehicle._rows, k), first_step)
+            return self._sense_loop(self.vehicle._restep(self.vehicle.history_arrays.rows, k), first_step)
         truth = Truth._of(period.truth.packed)
-        if status >= 0 or status in (SENSE_POSITION, SENSE_RECEIVER):  # inputs refused, nothing changed: the general path's errors
+        if status >= 0 or status in (SENSE_POSITION, SENSE_RECEIVER):  # inputs refused, nothing changed: the
+            # general path's errors
             return self._sense_general(truth)
         if status != SENSE_OK:  # (-2: raises) or the sensor and the physics out of step (raises)
             out = period.outputs

@@ -1,5 +1,6 @@
 """One control period of the co-simulation as one compiled call: MuJoCo's sensor rows → truth
-rows → the MPU-9250's samples → every in-loop estimator → every attached consumer.
+rows → the MPU-9250's samples and the GNSS receiver's fixes → every in-loop estimator →
+every attached consumer.
 
 ``CoSimulation`` (``biso_cosim.cosim``) gathers the call's arrays once into a ``PeriodPlan``
 of named records and calls ``loop_kernel(plan)`` for each period (``step()``, the
@@ -9,7 +10,8 @@ estimator or a consumer by type: each joins by declaring its own kernel and arra
 An estimator joins (``biso_cosim.estimators.Estimator``, in the estimator's own module):
 
 * ``loop_kernel``: a jitted ``kernel(arrays, samples)`` that runs the estimator on the
-  period's ``LoopSamples`` (k rows) and writes the first k rows of its outputs;
+  period's ``PeriodSamples`` (k rows, and the period's fixes) and writes the first k rows
+  of its outputs;
 * ``loop_arrays(bound)``: a named tuple of the arrays that kernel reads and writes (its
   coefficients and state, advanced in place, and outputs for up to ``bound`` samples with
   at least the fields ``q_wb`` (bound, 4) and ``flags`` (bound,) int64, and ``gyro_bias_b``
@@ -118,7 +120,8 @@ class TruthArrays(NamedTuple):
 
 
 class LoopSamples(NamedTuple):
-    """A period's k samples as in-loop estimators and consumers receive them: gyro (rad/s),
+    """A period's k samples as the plug-in's tick gives them to in-loop estimators (the
+    co-simulation's call gives ``PeriodSamples``, these fields and the fixes): gyro (rad/s),
     accelerometer (m/s²), magnetometer (µT), (k, 3) body axes; ``mag_fresh`` (k,) uint8;
     ``imu_flags`` (k,) int64; ``speed_mps`` (k,) wheel odometry (empty when no estimator
     takes it); ``truth`` (k, width) packed truth at the samples (``TRUTH_LAYOUT``)."""
@@ -285,7 +288,8 @@ def _samples_of(outputs, truth, k, fixes):
     """The first k samples of a period and its fixes as ``PeriodSamples`` (views of the outputs)."""
     floats, bound = outputs.floats, outputs.flags.shape[0]
     speed = truth.odometry[:k] if truth.odometry.shape[0] else truth.odometry
-    return PeriodSamples(floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
+    return PeriodSamples(floats[bound:bound + 3 * k].reshape((k, 3)),
+                         floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
                          floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
                          outputs.imu_flags[:k], speed, truth.at[:k], fixes)
 

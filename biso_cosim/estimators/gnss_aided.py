@@ -528,9 +528,10 @@ class _GnssAided(Estimator):
         kalman = self._coef[K.C_MODE] == K.MODE_KALMAN
         windows = int(math.ceil(bound / (self._coef[K.C_WINDOW] * self.fs_hz)))
         room = 2 * K.PENDING_CAPACITY + 4 * bound + windows + 2
-        return GnssLoopArrays(self._coef, self._state, self.fs_hz, np.empty((bound, 4)), np.empty(bound, dtype=np.int64),
-                              np.empty((bound if kalman else 0, 3)), np.empty((bound if kalman else 0, 2)),
-                              np.empty((room, K.UPD_COLS)), np.zeros(3, dtype=np.int64))
+        return GnssLoopArrays(self._coef, self._state, self.fs_hz, np.empty((bound, 4)),
+                              np.empty(bound, dtype=np.int64), np.empty((bound if kalman else 0, 3)),
+                              np.empty((bound if kalman else 0, 2)), np.empty((room, K.UPD_COLS)),
+                              np.zeros(3, dtype=np.int64))
 
     def loop_estimate(self, arrays: "GnssLoopArrays", k: int) -> GnssAidedEstimate:
         """The estimate of the last period call's k samples, as ``update`` returns it (the
@@ -540,8 +541,8 @@ class _GnssAided(Estimator):
         if fault:
             value = int(arrays.counts[K.LOOP_FAULT + 1])
             if fault == K.LOOP_FAULT_STREAM:
-                raise ValueError(f"{self.method}: gnss.t_s must continue the stream: the period's first fix is not after "
-                                 f"the last fix already given (t = {self._state[K.S_LAST_FIX]!r} s); the receiver and "
+                raise ValueError(f"{self.method}: gnss.t_s must continue the stream: the period's first fix is not "
+                                 f"after the last fix already given (t = {self._state[K.S_LAST_FIX]!r} s); the receiver and "
                                  "the estimator are not in step (a state restored into one of them alone?)")
             if fault == K.LOOP_FAULT_WAITING:
                 raise ValueError(f"{self.method}: gnss: {value} fixes arrive after the last IMU sample of the period; "
