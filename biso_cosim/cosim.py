@@ -273,9 +273,10 @@ class CoSimulation:
     ----------
     fast_path : True (default): each period (``step()``) or block of periods (``run()``) is
         one call of ``biso_cosim.loop.loop_kernel`` running the sensor, the GNSS receiver,
-        every estimator that declares a ``loop_kernel`` and every attached consumer; False: the general path, one
-        Python call per stage (the same numbers bit for bit: for tests and debugging). Local
-        magnetic disturbances and a start-up gyro calibration take the general path.
+        every estimator that declares a ``loop_kernel`` and every attached consumer; False:
+        the general path, one Python call per stage (the same numbers bit for bit: for tests
+        and debugging). Local magnetic disturbances and a start-up gyro calibration take the
+        general path.
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
