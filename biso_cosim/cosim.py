@@ -14,6 +14,7 @@ time stamps, so every estimate is compared with the attitude at the instant it r
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 import math
 import signal
@@ -26,9 +27,10 @@ from typing import Any, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, SENSE_OK, SENSE_POSITION,
-                             SENSE_RESTEP, LoopSamples, PeriodPlan, PeriodWork, PhysicsRows, SampleOutputs, SensorArrays,
-                             TruthArrays, loop_kernel, prepare, sensor_inputs)
+from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_RECEIVER,
+                             SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan, PeriodSamples,
+                             PeriodWork, PhysicsRows, SampleOutputs, SensorArrays, TruthArrays, loop_kernel, prepare,
+                             sensor_inputs)
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
@@ -81,12 +83,15 @@ class _Period:
     estimators (key, estimator, arrays), the consumers' estimates, and the views of its
     outputs made for each number of samples k (for outputs reused from period to period)."""
 
-    __slots__ = ("plan", "physics", "truth", "outputs", "in_loop", "consumed", "versions", "views", "increments",
-                 "subintervals")
+    __slots__ = ("plan", "physics", "truth", "outputs", "fixes", "in_loop", "per_period", "consumed", "versions",
+                 "views", "increments", "subintervals")
 
-    def __init__(self, plan, physics, truth, outputs, in_loop, consumed, versions, increments, subintervals):
+    def __init__(self, plan, physics, truth, outputs, fixes, in_loop, consumed, versions, increments, subintervals):
         self.plan, self.physics, self.truth, self.outputs, self.consumed = plan, physics, truth, outputs, consumed
+        self.fixes = fixes  # the receiver's output rows and the call's clock (None: no receiver in the call)
         self.in_loop, self.versions, self.increments, self.subintervals = in_loop, versions, increments, subintervals
+        # the in-loop estimators whose estimate is made anew each period (``Estimator.loop_views``)
+        self.per_period = tuple(entry for entry in in_loop if not entry[1].loop_views)
         self.views: dict[int, tuple] = {}
 
     def view(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
@@ -98,6 +103,9 @@ class _Period:
                                        self.increments, self.subintervals)
             estimates = {key: est.loop_estimate(arrays, k) for key, est, arrays in self.in_loop}
             view = self.views[k] = (samples, Truth._of(self.truth.at[:k]), estimates)
+        elif self.per_period:
+            for key, est, arrays in self.per_period:
+                view[2][key] = est.loop_estimate(arrays, k)
         return view
 
     def copy(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
@@ -105,11 +113,19 @@ class _Period:
         out = self.outputs
         samples = MPU9250._samples(SENSE_OK, k, (out.floats.copy(), out.words.copy(), out.status_bytes.copy(),
                                                  out.flags.copy()), self.increments, self.subintervals)
-        estimates = {}
-        for key, est, arrays in self.in_loop:
-            e = est.loop_estimate(arrays, k)
-            estimates[key] = Estimate(e.q_wb.copy(), e.flags.copy(), None if e.gyro_bias_b is None else e.gyro_bias_b.copy())
+        estimates = {key: _copied(est.loop_estimate(arrays, k)) for key, est, arrays in self.in_loop}
         return samples, Truth._of(self.truth.at[:k].copy()), estimates
+
+    def fix_rows(self) -> np.ndarray | None:
+        """The fixes of the last call (rows of ``FIX_LAYOUT``; views), None without a receiver."""
+        return None if self.fixes is None else self.fixes[0][:int(self.fixes[1][CLOCK_FIXES])]
+
+
+def _copied(estimate: Estimate) -> Estimate:
+    """An estimate (any ``Estimate`` record) in arrays of its own."""
+    return dataclasses.replace(estimate, **{f.name: getattr(estimate, f.name).copy()
+                                            for f in dataclasses.fields(estimate)
+                                            if isinstance(getattr(estimate, f.name), np.ndarray)})
 
 
 def _check_command(command: Any, max_steer_rad: float) -> None:
@@ -256,10 +272,11 @@ class CoSimulation:
     Attributes
     ----------
     fast_path : True (default): each period (``step()``) or block of periods (``run()``) is
-        one call of ``biso_cosim.loop.loop_kernel`` running the sensor, every estimator that
-        declares a ``loop_kernel`` and every attached consumer; False: the general path, one
-        Python call per stage (the same numbers bit for bit: for tests and debugging). Local
-        magnetic disturbances and a start-up gyro calibration take the general path.
+        one call of ``biso_cosim.loop.loop_kernel`` running the sensor, the GNSS receiver,
+        every estimator that declares a ``loop_kernel`` and every attached consumer; False:
+        the general path, one Python call per stage (the same numbers bit for bit: for tests
+        and debugging). Local magnetic disturbances and a start-up gyro calibration take the
+        general path.
     """
 
     def __init__(self, route: str | Route = "figure8", *, duration_s: float | None = None, seed: int = 0,
@@ -591,7 +608,7 @@ class CoSimulation:
         return self._consumers
 
     def _consume(self, samples: ImuSamples, at_samples: Truth, outputs: Mapping[str, Estimate],
-                 odometry: np.ndarray | None, imu_flags: np.ndarray | None) -> None:
+                 odometry: np.ndarray | None, imu_flags: np.ndarray | None, fix_rows: np.ndarray | None) -> None:
         """The attached work on the general path's period (the fast path runs it in its call)."""
         if not self._consumers:
             return
@@ -600,8 +617,9 @@ class CoSimulation:
         if self._wants_odometry and odometry is None:
             odometry = self.odometry_mps(at_samples)
         speed = odometry if self._wants_odometry else np.empty(0)
-        view = LoopSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8), flags[:k],
-                           speed[:k] if speed.shape[0] else speed, at_samples.packed)
+        view = PeriodSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8),
+                             flags[:k], speed[:k] if speed.shape[0] else speed, at_samples.packed,
+                             NO_RECEIVER[2].fixes if fix_rows is None else np.ascontiguousarray(fix_rows))
         for work in self._consumers:
             work.kernel(view, tuple(outputs[key].q_wb for key in work.estimates), work.arrays)
 
@@ -671,6 +689,7 @@ class CoSimulation:
         """What a reused plan depends on beyond its own arrays: the sensor's and the
         estimators' array versions, and the attached work."""
         return (self.imu.arrays_version, self._consumers_version,
+                None if self.gnss_receiver is None else self.gnss_receiver.arrays_version,
                 *(getattr(est, "arrays_version", 0) for est in self.estimators.values()))
 
     def _period(self, rows: np.ndarray | None, packed_rows: bool) -> _Period:
@@ -678,21 +697,22 @@ class CoSimulation:
         vehicle's rows; else copied into the plan's own rows), gathered once for each kind
         and number of rows and reused while the versions hold."""
         vehicle = self.vehicle
+        source = vehicle.history_arrays
         mode = "history" if rows is None else "packed" if packed_rows else "rows"
-        key = (mode, vehicle._rows.shape[0] if rows is None else rows.shape[0])
+        key = (mode, source.rows.shape[0] if rows is None else rows.shape[0])
         period = self._periods.get(key)
         if period is not None and period.versions == self._versions():
             if rows is not None:
                 np.copyto(period.physics.rows, rows)
             return period
-        history = vehicle._history if rows is None else _NO_HISTORY
-        rows = vehicle._rows if rows is None else rows.copy()
+        history = source.history if rows is None else _NO_HISTORY
+        rows = source.rows if rows is None else rows.copy()
         n = rows.shape[0]
         orders, subs = self._increment_orders, self._subintervals
         floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
         bound = flags.shape[0]
-        physics = PhysicsRows(history, vehicle._history_layout, vehicle._warnings, vehicle._sensordata, rows,
-                              _TRUTH_GATHER if packed_rows else vehicle._gather, float(vehicle.physics_rate_hz))
+        physics = PhysicsRows(history, source.layout, source.warnings, source.sensordata, rows,
+                              _TRUTH_GATHER if packed_rows else source.gather, float(vehicle.physics_rate_hz))
         sensor = SensorArrays(*self.imu.loop_arrays(), orders, subs, float(self._imu_t0_s))
         truth = TruthArrays(self.magnetic.earth.field_enu_ut, self._before, np.empty((n, Truth.WIDTH)),
                             np.empty((bound, Truth.WIDTH)), float(vehicle.index.wheel_radius_m),
@@ -710,10 +730,15 @@ class CoSimulation:
                 consumers = None
                 break
             consumers.append((work.kernel, tuple(index[label].q_wb for label in work.estimates), work.arrays))
-        plan = prepare(PeriodPlan(physics, sensor, truth, outputs, self._clock,
-                                  tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop), consumers or ()))
-        period = _Period(plan, physics, truth, outputs, tuple(in_loop), consumers is not None, self._versions(), orders,
-                         subs)
+        receiver = NO_RECEIVER
+        if self.gnss_receiver is not None:
+            rx = type(self.gnss_receiver)
+            receiver = (rx.loop_check, rx.loop_kernel, self.gnss_receiver.loop_arrays(n))
+        estimators = tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop)
+        plan = prepare(PeriodPlan(physics, sensor, truth, outputs, self._clock, receiver, estimators, consumers or ()))
+        fixes = None if receiver is NO_RECEIVER else (receiver[2].fixes, self._clock)
+        period = _Period(plan, physics, truth, outputs, fixes, tuple(in_loop), consumers is not None, self._versions(),
+                         orders, subs)
         self._periods[key] = period
         return period
 
@@ -731,9 +756,10 @@ class CoSimulation:
         clock[CLOCK_T_START], clock[CLOCK_FIRST_STEP] = t_start, first_step
         status, k = loop_kernel(period.plan)
         if status == SENSE_RESTEP:  # the history did not hold the rows (nothing changed): the period stepped again
-            return self._sense_loop(self.vehicle._restep(self.vehicle._rows, k), first_step)
+            return self._sense_loop(self.vehicle._restep(self.vehicle.history_arrays.rows, k), first_step)
         truth = Truth._of(period.truth.packed)
-        if status >= 0 or status == SENSE_POSITION:  # inputs refused, nothing changed: the general path's errors
+        if status >= 0 or status in (SENSE_POSITION, SENSE_RECEIVER):  # inputs refused, nothing changed: the
+            # general path's errors
             return self._sense_general(truth)
         if status != SENSE_OK:  # (-2: raises) or the sensor and the physics out of step (raises)
             out = period.outputs
@@ -742,10 +768,10 @@ class CoSimulation:
             self._truth_at(samples.t_s, truth)
         samples, at_samples, estimated = period.view(k) if self.reuse_outputs else period.copy(k)
         if (period.consumed and len(estimated) == len(self.estimators) and not self.keep_log
-                and self.gnss_receiver is None and not self.navigators):  # the call was the whole period
+                and not self.navigators):  # the call was the whole period
             return samples, at_samples, dict(estimated)
         return self._estimate(truth, samples, at_samples, period.truth.odometry[:k], period.outputs.imu_flags[:k],
-                              estimated, consumed=period.consumed)
+                              estimated, consumed=period.consumed, fix_rows=period.fix_rows())
 
     def _sense(self, truth: Truth) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """Sensor and estimators over the physics rows ``truth`` (one or more periods)."""
@@ -772,15 +798,18 @@ class CoSimulation:
 
     def _estimate(self, truth: Truth, samples: ImuSamples, at_samples: Truth, odometry: np.ndarray | None = None,
                   imu_flags: np.ndarray | None = None, estimated: Mapping[str, Estimate] | None = None,
-                  consumed: bool = False) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
+                  consumed: bool = False, fix_rows: np.ndarray | None = None
+                  ) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """GNSS, navigators and estimators over the sensor's samples (and the log), then the
         attached work unless ``consumed`` (done in the period call); ``odometry``,
         ``imu_flags``: the wheel odometry at the samples and their flags as int64, when
         already at hand; ``estimated``: the outputs of estimators already run on the samples
-        (in the period call)."""
+        (in the period call); ``fix_rows``: the receiver's fixes of the period, when it ran
+        in the call. The fixes' geodetic position is computed only for a consumer of the
+        record (an estimator after the call; the log's, in ``result``)."""
         fixes = None
-        if self.gnss_receiver is not None:
-            fixes = self.gnss_receiver.simulate(truth.pos_w, truth.vel_w)
+        if self.gnss_receiver is not None and fix_rows is None:
+            fix_rows = self.gnss_receiver.simulate_rows(truth.pos_w, truth.vel_w)
         for label, nav in self.navigators.items():
             navigated = self._navigate(nav, samples)
             if self.keep_log:
@@ -797,6 +826,8 @@ class CoSimulation:
                     odometry = self.odometry_mps(at_samples)
                 extra["speed_mps"] = odometry
             if "gnss" in inputs:
+                if fixes is None:
+                    fixes = self.gnss_receiver.fixes_of(fix_rows)
                 extra["gnss"] = fixes
             if "imu_flags" in inputs:  # the sensor's saturation and overflow bits
                 if imu_flags is None:
@@ -813,12 +844,12 @@ class CoSimulation:
         if self.keep_log:
             self._log["truth"].append(at_samples)
             self._log["imu"].append(samples)
-            if fixes is not None:
-                self._log["gnss"].append(fixes)
+            if fix_rows is not None:
+                self._log["gnss"].append(fix_rows.copy())
             for key, out in outputs.items():
                 self._est_log[key].append(out)
         if not consumed:
-            self._consume(samples, at_samples, outputs, odometry, imu_flags)
+            self._consume(samples, at_samples, outputs, odometry, imu_flags, fix_rows)
         return samples, at_samples, outputs
 
     def run(self, progress: bool = False, block_periods: int | None = None,
@@ -879,10 +910,9 @@ class CoSimulation:
             raise RuntimeError("run() or step() first: nothing has been simulated yet")
         imu = ImuSamples.concatenate(self._log["imu"])
         gnss = None
-        if self.gnss_receiver is not None:
-            from biso_cosim.sensors import GnssFixes
-
-            gnss = GnssFixes.concatenate(self._log["gnss"])
+        if self.gnss_receiver is not None:  # (the log holds fix rows: one geodetic conversion for all)
+            rows = self._log["gnss"]
+            gnss = self.gnss_receiver.fixes_of(np.concatenate(rows) if rows else np.empty((0, 9)))
         estimates = {k: (np.concatenate([o.q_wb for o in outs]), np.concatenate([o.flags for o in outs]))
                      for k, outs in self._est_log.items()}
         navigation = {k: {name: np.concatenate([getattr(o, name) for o in outs]) for name in ("q_wb", "v_w", "p_w")}

@@ -1,5 +1,6 @@
 """One control period of the co-simulation as one compiled call: MuJoCo's sensor rows → truth
-rows → the MPU-9250's samples → every in-loop estimator → every attached consumer.
+rows → the MPU-9250's samples and the GNSS receiver's fixes → every in-loop estimator →
+every attached consumer.
 
 ``CoSimulation`` (``biso_cosim.cosim``) gathers the call's arrays once into a ``PeriodPlan``
 of named records and calls ``loop_kernel(plan)`` for each period (``step()``, the
@@ -9,12 +10,20 @@ estimator or a consumer by type: each joins by declaring its own kernel and arra
 An estimator joins (``biso_cosim.estimators.Estimator``, in the estimator's own module):
 
 * ``loop_kernel``: a jitted ``kernel(arrays, samples)`` that runs the estimator on the
-  period's ``LoopSamples`` (k rows) and writes the first k rows of its outputs;
+  period's ``PeriodSamples`` (k rows, and the period's fixes) and writes the first k rows
+  of its outputs;
 * ``loop_arrays(bound)``: a named tuple of the arrays that kernel reads and writes (its
   coefficients and state, advanced in place, and outputs for up to ``bound`` samples with
   at least the fields ``q_wb`` (bound, 4) and ``flags`` (bound,) int64, and ``gyro_bias_b``
   (bound, 3) where it estimates a bias), or None when it cannot run in the loop now;
 * ``arrays_version``: a counter it increases whenever it replaces one of those arrays.
+
+A receiver (a sensor fed the period's true antenna motion: the GNSS receiver,
+``biso_cosim.sensors.GnssReceiver``) joins by the same kind of declaration: ``loop_check(arrays,
+pos_w, vel_w) -> bool`` (whether it takes the rows; run before the chip, so that a refusal
+changes nothing), ``loop_kernel(arrays, pos_w, vel_w) -> m`` (its m outputs of the period into
+``arrays.fixes``, rows of ``FIX_LAYOUT``), ``loop_arrays(n)`` and ``arrays_version``. Its fixes
+reach the estimators and consumers in ``PeriodSamples.gnss``.
 
 A consumer (an environment's per-period work) joins by ``CoSimulation.attach(PeriodWork(...))``:
 a jitted ``kernel(samples, q, arrays)`` with ``q`` the ``q_wb`` outputs of the estimators it
@@ -36,21 +45,24 @@ from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
 from biso_cosim.vehicle._kernels import HISTORY_READ, TRUTH_LAYOUT, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
-__all__ = ["PhysicsRows", "SensorArrays", "SampleOutputs", "TruthArrays", "LoopSamples", "PeriodWork", "PeriodPlan",
-           "loop_kernel", "prepare", "period_samples", "sensor_inputs", "CLOCK_T_START", "CLOCK_FIRST_STEP", "CLOCK_HAS_BEFORE",
-           "SENSE_OK", "SENSE_POSITION", "SENSE_OUT_OF_STEP", "SENSE_RESTEP"]
+__all__ = ["PhysicsRows", "SensorArrays", "SampleOutputs", "TruthArrays", "LoopSamples", "PeriodSamples", "PeriodWork",
+           "PeriodPlan", "NO_RECEIVER", "loop_kernel", "prepare", "period_samples", "sensor_inputs", "CLOCK_T_START",
+           "CLOCK_FIRST_STEP", "CLOCK_HAS_BEFORE", "CLOCK_FIXES", "SENSE_OK", "SENSE_POSITION", "SENSE_OUT_OF_STEP",
+           "SENSE_RESTEP", "SENSE_RECEIVER"]
 
 
 _FIRST_CLASS = "First-class function type feature is experimental"  # numba's label (see ``prepare``)
 
-# the period's clock (``PeriodPlan.clock``, float64): where its steps begin, and whether the
-# truth row before the period (``TruthArrays.before``) holds one
-CLOCK_T_START, CLOCK_FIRST_STEP, CLOCK_HAS_BEFORE = 0, 1, 2
-CLOCK_SIZE = 3
+# the period's clock (``PeriodPlan.clock``, float64): where its steps begin, whether the truth
+# row before the period (``TruthArrays.before``) holds one, and how many fixes the receiver
+# delivered in the last call
+CLOCK_T_START, CLOCK_FIRST_STEP, CLOCK_HAS_BEFORE, CLOCK_FIXES = 0, 1, 2, 3
+CLOCK_SIZE = 4
 
 # ``loop_kernel``'s status: success; otherwise the chip's own status (a row index it refused,
-# or -2), a position that is not finite, time stamps outside the rows, rows not in the history
-SENSE_OK, SENSE_POSITION, SENSE_OUT_OF_STEP, SENSE_RESTEP = -1, -3, -4, -5
+# or -2), a position that is not finite, time stamps outside the rows, rows not in the history,
+# rows the receiver does not take
+SENSE_OK, SENSE_POSITION, SENSE_OUT_OF_STEP, SENSE_RESTEP, SENSE_RECEIVER = -1, -3, -4, -5, -6
 
 
 class PhysicsRows(NamedTuple):
@@ -108,7 +120,8 @@ class TruthArrays(NamedTuple):
 
 
 class LoopSamples(NamedTuple):
-    """A period's k samples as in-loop estimators and consumers receive them: gyro (rad/s),
+    """A period's k samples as the plug-in's tick gives them to in-loop estimators (the
+    co-simulation's call gives ``PeriodSamples``, these fields and the fixes): gyro (rad/s),
     accelerometer (m/s²), magnetometer (µT), (k, 3) body axes; ``mag_fresh`` (k,) uint8;
     ``imu_flags`` (k,) int64; ``speed_mps`` (k,) wheel odometry (empty when no estimator
     takes it); ``truth`` (k, width) packed truth at the samples (``TRUTH_LAYOUT``)."""
@@ -120,6 +133,28 @@ class LoopSamples(NamedTuple):
     imu_flags: np.ndarray
     speed_mps: np.ndarray
     truth: np.ndarray
+
+
+class PeriodSamples(NamedTuple):
+    """The co-simulation's period as its estimators and consumers receive it: the fields of
+    ``LoopSamples`` (the plug-in's tick gives those alone) and ``gnss``, the (m, 9) fixes the
+    receiver delivered during the period (``biso_cosim.sensors.gnss.FIX_LAYOUT``: time of
+    validity, arrival, ENU position and velocity, valid), (0, 9) without a receiver."""
+
+    gyro_b: np.ndarray
+    accel_b: np.ndarray
+    mag_b: np.ndarray
+    mag_fresh: np.ndarray
+    imu_flags: np.ndarray
+    speed_mps: np.ndarray
+    truth: np.ndarray
+    gnss: np.ndarray
+
+
+class NoReceiver(NamedTuple):
+    """The receiver entry's arrays of a period without a receiver: no fixes."""
+
+    fixes: np.ndarray
 
 
 class PeriodWork(NamedTuple):
@@ -142,19 +177,20 @@ class _PeriodPlanType(types.StructRef):
 class PeriodPlan(structref.StructRefProxy):
     """The whole of a period's call: ``physics`` (PhysicsRows), ``sensor`` (SensorArrays),
     ``truth`` (TruthArrays), ``outputs`` (SampleOutputs), ``clock`` (float64, ``CLOCK_*``),
-    ``estimators`` (tuple of (kernel, arrays)), ``consumers`` (tuple of (kernel, q, arrays)).
-    A record numba receives at the cost of one argument, whatever it holds."""
+    ``receiver`` ((check, kernel, arrays) of the receiver, or ``NO_RECEIVER``), ``estimators``
+    (tuple of (kernel, arrays)), ``consumers`` (tuple of (kernel, q, arrays)). A record numba
+    receives at the cost of one argument, whatever it holds."""
 
-    def __new__(cls, physics, sensor, truth, outputs, clock, estimators, consumers):
+    def __new__(cls, physics, sensor, truth, outputs, clock, receiver, estimators, consumers):
         with warnings.catch_warnings():  # (see ``prepare``)
             warnings.filterwarnings("ignore", message=_FIRST_CLASS, category=NumbaExperimentalFeatureWarning)
-            return structref.StructRefProxy.__new__(cls, physics, sensor, truth, outputs, clock,
+            return structref.StructRefProxy.__new__(cls, physics, sensor, truth, outputs, clock, receiver,
                                                     tuple(estimators) + ((_no_estimator, ()),),
                                                     tuple(consumers) + ((_no_consumer, (), ()),))
 
 
 structref.define_proxy(PeriodPlan, _PeriodPlanType,
-                       ["physics", "sensor", "truth", "outputs", "clock", "estimators", "consumers"])
+                       ["physics", "sensor", "truth", "outputs", "clock", "receiver", "estimators", "consumers"])
 
 
 @jit
@@ -165,6 +201,22 @@ def _no_estimator(arrays, samples):
 @jit
 def _no_consumer(samples, q, arrays):
     """The entry that ends every plan's consumers."""
+
+
+@jit
+def _no_receiver_check(arrays, pos_w, vel_w):
+    """A period without a receiver takes any rows."""
+    return True
+
+
+@jit
+def _no_receiver(arrays, pos_w, vel_w):
+    """A period without a receiver delivers no fixes."""
+    return 0
+
+
+NO_RECEIVER = (_no_receiver_check, _no_receiver, NoReceiver(np.empty((0, 9))))
+"""``PeriodPlan.receiver`` of a period without a receiver."""
 
 
 @jit
@@ -182,13 +234,14 @@ def sensor_inputs(packed, field_enu_ut, omega_b, force_b, mag_b):
 
 
 @jit
-def _sense(physics, sensor, truth, outputs, clock):
+def _sense(physics, sensor, truth, outputs, clock, receiver):
     """A period's sensing: the rows (read from the history when it is not empty), the truth
     packed from them, the chip's inputs and the chip, its time stamps shifted, the truth
-    (and the odometry) at them, the flags as int64. Returns (status, k): ``SENSE_OK`` and
-    the number of samples; the chip's status when it refused the rows (a row index, or
-    -2), ``SENSE_POSITION`` (nothing changed but the packed truth), ``SENSE_OUT_OF_STEP``,
-    or ``SENSE_RESTEP`` and ``_history_rows``' outcome (nothing changed)."""
+    (and the odometry) at them, the flags as int64, the receiver's fixes. Returns (status,
+    k): ``SENSE_OK`` and the number of samples; the chip's status when it refused the rows
+    (a row index, or -2), ``SENSE_POSITION`` or ``SENSE_RECEIVER`` (nothing changed but the
+    packed truth), ``SENSE_OUT_OF_STEP``, or ``SENSE_RESTEP`` and ``_history_rows``' outcome
+    (nothing changed)."""
     rows = physics.rows
     if physics.history.shape[0]:
         outcome = _history_rows(physics.history, physics.layout, rows.shape[0], clock[CLOCK_T_START], physics.warnings,
@@ -201,6 +254,9 @@ def _sense(physics, sensor, truth, outputs, clock):
     inputs = np.empty((3, n, 3))
     if not sensor_inputs(packed, truth.field_enu_ut, inputs[0], inputs[1], inputs[2]):
         return SENSE_POSITION, 0
+    p, v = TRUTH_LAYOUT.pos_w, TRUTH_LAYOUT.vel_w
+    if not receiver[0](receiver[2], packed[:, p:p + 3], packed[:, v:v + 3]):
+        return SENSE_RECEIVER, 0
     status, k = _simulate(sensor.params, sensor.channel_params, sensor.chip_state, sensor.channel_state, inputs[0],
                           inputs[1], inputs[2], np.empty(0), sensor.temp_default, sensor.order, sensor.nsub,
                           outputs.floats, outputs.words, outputs.status_bytes, outputs.flags)
@@ -223,27 +279,29 @@ def _sense(physics, sensor, truth, outputs, clock):
     for c in range(packed.shape[1]):  # the row before the next period
         truth.before[0, c] = packed[n - 1, c]
     clock[CLOCK_HAS_BEFORE] = 1.0
+    clock[CLOCK_FIXES] = receiver[1](receiver[2], packed[:, p:p + 3], packed[:, v:v + 3])
     return SENSE_OK, k
 
 
 @jit
-def _samples_of(outputs, truth, k):
-    """The first k samples of a period as ``LoopSamples`` (views of the outputs)."""
+def _samples_of(outputs, truth, k, fixes):
+    """The first k samples of a period and its fixes as ``PeriodSamples`` (views of the outputs)."""
     floats, bound = outputs.floats, outputs.flags.shape[0]
     speed = truth.odometry[:k] if truth.odometry.shape[0] else truth.odometry
-    return LoopSamples(floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
-                       floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
-                       outputs.imu_flags[:k], speed, truth.at[:k])
+    return PeriodSamples(floats[bound:bound + 3 * k].reshape((k, 3)),
+                         floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
+                         floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
+                         outputs.imu_flags[:k], speed, truth.at[:k], fixes)
 
 
 @jit(cache=False)  # (a plan's type names its kernels: compiled once per process for each set)
 def loop_kernel(plan):
     """A period (or block of periods) of ``plan``: ``_sense``, then on success every
     estimator's kernel and every consumer's (also on a period of no samples). Returns (status, k)."""
-    status, k = _sense(plan.physics, plan.sensor, plan.truth, plan.outputs, plan.clock)
+    status, k = _sense(plan.physics, plan.sensor, plan.truth, plan.outputs, plan.clock, plan.receiver)
     if status != SENSE_OK:
         return status, k
-    samples = _samples_of(plan.outputs, plan.truth, k)
+    samples = _samples_of(plan.outputs, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
     for entry in literal_unroll(plan.estimators):
         entry[0](entry[1], samples)
     for entry in literal_unroll(plan.consumers):
@@ -253,8 +311,8 @@ def loop_kernel(plan):
 
 @jit
 def period_samples(plan, k):
-    """The first k samples of ``plan``'s last successful call (``LoopSamples``)."""
-    return _samples_of(plan.outputs, plan.truth, k)
+    """The first k samples of ``plan``'s last successful call and its fixes (``PeriodSamples``)."""
+    return _samples_of(plan.outputs, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
 
 
 _COMPILED: set = set()

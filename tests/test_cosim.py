@@ -396,7 +396,7 @@ def _assert_same_samples(a, b):
      ["biso", "second", "biso_plus", "third", "dcm_pi"]),
     ({"navigators": ("two_sample",), "gnss": "consumer",
       "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")},
-     ["biso", "biso_plus"]),  # (increments and GNSS fixes: after the period call)
+     ["biso", "biso_plus", "gnss_kalman"]),  # (increments: after the period call; the receiver's fixes: in it)
     ({"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
       "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")}, []),
 ])
@@ -406,8 +406,9 @@ def test_period_kernel_equals_the_general_path(options, in_loop, reuse):
     the samples, and every estimator that declares a loop kernel): the same numbers, bit for
     bit, as the general path (``fast_path = False``); also when, as for the environments,
     every period's samples and estimates are written into the same arrays. An estimator
-    whose settings need inputs the call does not give (increments, GNSS fixes) runs after
-    it; a gyro offset to remove first takes the general path."""
+    whose settings need inputs the call does not give (increments) runs after it; the GNSS
+    receiver and the GNSS-aided filters run in it; a gyro offset to remove first takes the
+    general path."""
     opts = dict(options)
     estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
     specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label=e[2]) for e in estimators]
@@ -519,24 +520,47 @@ def test_wheel_odometry_is_the_front_wheels_times_cos_steering():
 
 
 @pytest.mark.parametrize(("column", "message"), [(1, "omega_b"), (12, "p_w must be finite")])
-def test_period_kernel_refuses_bad_rows_as_the_general_path_does(monkeypatch, column, message):
-    """A non-finite rate or position in the physics rows: the general path's error, and the
-    sensor unchanged (the kernel refuses before it changes anything)."""
+def test_period_kernel_refuses_bad_rows_as_the_general_path_does(column, message):
+    """A non-finite rate or position in the physics rows (injected by the vehicle's public
+    ``row_fault`` hook): the general path's error, and the sensor unchanged (the kernel
+    refuses before it changes anything)."""
     sim = CoSimulation("figure8", duration_s=2.0, estimators=("poisson",))
     vehicle = sim.vehicle
-    gather_column = int(vehicle._gather[column - 1])
-    step_rows = vehicle._step_rows
+    gather_column = int(vehicle.history_arrays.gather[column - 1])
 
-    def poisoned(n=None):
-        rows, first = step_rows(n)
+    def poison(rows, first_step):
         rows[3, gather_column] = np.nan
-        return rows, first
 
     sim.step()
     before = sim.imu.get_state()
-    monkeypatch.setattr(vehicle, "_step_period", lambda: (*vehicle._step_rows(), 0.0))  # rows given, poisoned
-    monkeypatch.setattr(vehicle, "_step_rows", poisoned)
+    vehicle.row_fault = poison
     with pytest.raises(ValueError, match=message):
         sim.step()
     after = sim.imu.get_state()
     assert all(np.array_equal(after[key], before[key]) for key in before)
+
+
+def test_a_bad_velocity_is_the_receivers_error_on_either_path():
+    """A non-finite velocity in the rows of a run with a GNSS receiver: the receiver's own
+    error (``GnssReceiver.simulate``'s), with the sensor and the receiver in the same state
+    after it on the fast path (which checks the rows before its chip) as on the general path."""
+    from biso_cosim.vehicle._kernels import TRUTH_LAYOUT
+
+    states = []
+    for fast_path in (True, False):
+        sim = CoSimulation("figure8", duration_s=2.0, estimators=("gnss_kalman",))
+        sim.fast_path = fast_path
+        column = int(sim.vehicle.history_arrays.gather[TRUTH_LAYOUT.vel_w - 1])  # (East)
+
+        def poison(rows, first_step):
+            rows[5, column] = np.inf
+
+        for _ in range(3):
+            sim.step()
+        receiver = sim.gnss_receiver.get_state()
+        sim.vehicle.row_fault = poison
+        with pytest.raises(ValueError, match="vel_w must be finite"):
+            sim.step()
+        assert all(np.array_equal(v, receiver[key]) for key, v in sim.gnss_receiver.get_state().items())
+        states.append(sim.imu.get_state())
+    assert all(np.array_equal(states[0][key], states[1][key]) for key in states[0])

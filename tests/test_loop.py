@@ -5,6 +5,7 @@ path (``CoSimulation.fast_path = False``), bit for bit."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -79,6 +80,20 @@ def _assert_same_run(a, b):
     assert list(a.estimates) == list(b.estimates)
     for key, (q, flags) in a.estimates.items():
         assert np.array_equal(q, b.estimates[key][0]) and np.array_equal(flags, b.estimates[key][1]), key
+    assert (a.gnss is None) == (b.gnss is None)
+    if a.gnss is not None:  # every field of the fixes, bit for bit (NaN where no fix)
+        for f in dataclasses.fields(a.gnss):
+            assert getattr(a.gnss, f.name).tobytes() == getattr(b.gnss, f.name).tobytes(), f.name
+
+
+def _assert_same_estimate(a, b, key):
+    """Two estimates (any ``Estimate`` record: GNSS-aided ones add σ and the updates) bit for bit."""
+    assert type(a) is type(b), key
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        assert (x is None) == (y is None), (key, f.name)
+        if x is not None:
+            assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), (key, f.name)
 
 
 def test_a_users_estimator_defined_here_joins_the_period_call():
@@ -106,64 +121,68 @@ def test_a_users_estimator_defined_here_joins_the_period_call():
 @pytest.mark.parametrize("name", estimator_names())
 def test_fast_path_equals_general_path_for_every_registered_estimator(name):
     fast, general = _pair(duration_s=3.0, seed=5, estimators=[name], keep_log=True)
-    in_loop = fast.loop_estimators
-    assert in_loop == ((name,) if "gnss" not in name else ())  # (GNSS fixes: by update after the call)
+    assert fast.loop_estimators == (name,)  # (none falls out of the period call)
     for _ in range(60):
         a, b = fast.step(), general.step()
         assert np.array_equal(a[0].gyro_b, b[0].gyro_b) and np.array_equal(a[1].packed, b[1].packed)
-        assert np.array_equal(a[2][name].q_wb, b[2][name].q_wb) and np.array_equal(a[2][name].flags, b[2][name].flags)
+        _assert_same_estimate(a[2][name], b[2][name], name)
     _assert_same_run(fast.run(), general.run())
 
 
-def test_attached_work_runs_once_per_period_on_either_path():
-    """A consumer's kernel sees each period's samples and its estimator's q_wb once, the same
-    on both paths."""
+@pytest.mark.parametrize("name", ["gnss_complementary", "gnss_kalman"])
+def test_gnss_aided_estimators_in_the_call_equal_update_over_a_route(name):
+    """With the receiver and the filter in the period call (reused outputs, no log: the
+    environments' way), every period's estimate (attitude, flags, drift, σ, the updates
+    record) is the general path's, over a route long enough for fixes to be used and gated;
+    and the run's fixes are the receiver's ``simulate`` over the same truth, geodetic
+    position included (``pymap3d`` element by element, so one conversion in ``result()``
+    gives the per-call numbers)."""
+    options = dict(route="loop600", duration_s=40.0, seed=2, estimators=[name])
+    fast = CoSimulation(keep_log=False, reuse_outputs=True, **options)
+    general = CoSimulation(keep_log=False, **options)
+    general.fast_path = False
+    assert fast.loop_estimators == (name,)
+    kinds = set()
+    for _ in range(40 * 50):
+        a, b = fast.step(), general.step()
+        _assert_same_estimate(a[2][name], b[2][name], name)
+        kinds.update(a[2][name].updates["kind"].tolist())
+    assert {0, 2} <= kinds  # gnss updates and anchors were made
+    result = CoSimulation(**(options | {"duration_s": 6.0})).run()
+    import pymap3d
 
-    @jit
-    def count(samples, q, arrays):
-        k = samples.gyro_b.shape[0]
-        arrays[0][0] += 1
-        arrays[0][1] += k
-        if k:
-            for j in range(4):
-                arrays[1][j] = q[0][k - 1, j]
+    site = result.route.site
+    assert len(result.gnss) > 20 and result.gnss.valid.all()
+    for i in range(len(result.gnss)):  # each fix converted alone: the same bits
+        e, n, u = result.gnss.pos_w[i:i + 1].T
+        want = pymap3d.enu2geodetic(e, n, u, site.lat_deg, site.lon_deg, site.alt_m)
+        got = (result.gnss.lat_deg[i:i + 1], result.gnss.lon_deg[i:i + 1], result.gnss.alt_m[i:i + 1])
+        assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want)), i
+
+
+def test_a_gnss_estimator_out_of_step_with_its_receiver_is_refused_on_either_path():
+    """``update``'s refusal of fixes that do not continue the stream holds in the period
+    call too: a state restored into the estimator alone (its last fix far ahead) raises the
+    same error on both paths, and the estimator is left as it was."""
+    from biso_cosim.estimators import State
+    from biso_cosim.estimators import _gnss_kernels as K
 
     seen = []
     for fast_path in (True, False):
-        sim = CoSimulation("figure8", duration_s=2.0, seed=0, estimators=["biso"], keep_log=False,
-                           reuse_outputs=True)
+        sim = CoSimulation("figure8", duration_s=5.0, seed=1, estimators=["gnss_complementary"])
         sim.fast_path = fast_path
-        arrays = (np.zeros(2, dtype=np.int64), np.zeros(4))
-        sim.attach(PeriodWork(count, arrays, ("biso",)))
-        for _ in range(30):
-            samples, _, out = sim.step()
-            assert np.array_equal(arrays[1], out["biso"].q_wb[-1])
-        seen.append((arrays[0].copy(), arrays[1].copy()))
-    assert seen[0][0][0] == 30 and seen[0][0][1] == 30 * 4
-    assert np.array_equal(seen[0][0], seen[1][0]) and np.array_equal(seen[0][1], seen[1][1])
-    with pytest.raises(ValueError, match="no estimator 'nope'"):
-        sim.attach(PeriodWork(count, arrays, ("nope",)))
-
-
-@pytest.mark.parametrize("name, changes", [("biso", {"cutoff_hz": 1.5}), ("biso", {"pattern": 13}),
-                                           ("biso_plus", {"k_tilt": 3.0, "tau_acc_s": 2.0}),
-                                           ("dcm_pi", {"kp_rp": 0.5})])
-def test_retune_gives_set_params_numbers_and_keeps_the_loops_arrays(name, changes):
-    """``retune`` is ``set_params``' result (record, coefficients, the stream after it, bit
-    for bit), written into the arrays the period call holds: no new plan is needed."""
-    from biso_cosim.estimators import describe_estimator, make_estimator
-
-    known = {row["name"] for row in describe_estimator(name)["params"]}
-    changes = {k: v for k, v in changes.items() if k in known}
-    assert changes, f"{name}: none of {sorted(changes)} is a parameter"
-    rng = np.random.default_rng(1)
-    gyro, accel, mag = rng.normal(0, 0.1, (50, 3)), rng.normal(0, 0.2, (50, 3)) + (0, 0, 9.81), \
-        rng.normal(0, 1, (50, 3)) + (20.0, 0, -40.0)
-    a, b = make_estimator(name, 200.0), make_estimator(name, 200.0)
-    a.update(gyro, accel, mag), b.update(gyro, accel, mag)
-    coef, version = a.coefficients, a.arrays_version
-    a.retune(**changes)
-    b.set_params(**changes)
-    assert a.params == b.params and a.coefficients.tobytes() == b.coefficients.tobytes()
-    assert a.arrays_version == version and not np.array_equal(a.coefficients, coef)
-    assert np.array_equal(a.update(gyro, accel, mag).q_wb, b.update(gyro, accel, mag).q_wb)
+        for _ in range(20):
+            sim.step()
+        est = sim.estimators["gnss_complementary"]
+        state = est.get_state()
+        values = state.values.copy()
+        values[K.S_LAST_FIX] = 1e6
+        est.set_state(State(state.method, values, state.layout))
+        steps = 0
+        with pytest.raises(ValueError, match="must continue the stream"):
+            while steps < 20:
+                steps += 1
+                sim.step()
+        seen.append((steps, est.get_state().values))
+    assert 1 <= seen[0][0] == seen[1][0] < 20  # refused at the first period with a fix
+    assert seen[0][1][K.S_LAST_FIX] == 1e6 and seen[0][1].tobytes() == seen[1][1].tobytes()

@@ -323,7 +323,12 @@ class Estimator:
     jitted ``kernel(arrays, samples)`` on ``LoopSamples`` (k rows: gyro_b, accel_b, mag_b,
     imu_flags, speed_mps, ...) that advances ``arrays`` (``loop_arrays``) and writes the
     first k rows of its outputs, with the same arithmetic as ``update`` on those inputs.
-    None: the estimator runs by ``update`` after the period's call."""
+    The co-simulation's call gives ``PeriodSamples`` (``LoopSamples`` and ``gnss``, the
+    period's fixes). None: the estimator runs by ``update`` after the period's call."""
+    loop_views: ClassVar[bool] = True
+    """Whether ``loop_estimate(arrays, k)`` is views of the arrays alone, so that a caller may
+    keep it for every later period of k samples (the co-simulation does, with reused
+    outputs); False when it makes something of each period (GNSS-aided: the updates)."""
 
     def __init__(self, fs_hz: float, params: Any = None, *, method: str | None = None):
         self.method = method or type(self).method

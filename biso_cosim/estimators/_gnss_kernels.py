@@ -16,6 +16,7 @@ from biso_cosim.estimators import flags as fl
 from biso_cosim.estimators._base import layout_offsets
 from biso_cosim.estimators._kernels import _input_checks
 from biso_cosim.estimators.reference import _mag_usable, _ref_vector
+from biso_cosim.sensors.gnss import FIX_LAYOUT
 from biso_cosim.frames import (
     _gost_angles_from_lambda,
     _gost_lambda_from_angles,
@@ -719,3 +720,76 @@ def _gnss_batch(c, st, gyro, accel, mag, imu_flags, fx, q_out, flags_out, bias_o
         for a in range(FIX_COLS):
             st[S_PEND + FIX_COLS * i + a] = fx[ptr + i, a]
     return row
+
+
+# ``GnssLoopArrays.counts``: the update rows of the last call, and what stopped it (0: nothing)
+LOOP_ROWS, LOOP_FAULT = 0, 1
+LOOP_FAULT_STREAM, LOOP_FAULT_WAITING, LOOP_FAULT_UPDATES = 1, 2, 3
+
+
+@jit
+def _loop_fault(arrays, fault, value):
+    arrays.counts[LOOP_ROWS] = 0
+    arrays.counts[LOOP_FAULT] = fault
+    arrays.counts[LOOP_FAULT + 1] = value
+
+
+@jit
+def gnss_loop(arrays, samples):
+    """``update`` in the co-simulation's period call (``biso_cosim.loop``): the period's
+    samples, the sensor's flags as ``imu_flags`` and the receiver's fixes ``samples.gnss``
+    (rows of ``FIX_LAYOUT``) merged with those waiting in the state, as ``_fix_rows`` merges
+    them; ``_gnss_batch`` on them with an updates buffer of the size ``update`` gives it, so
+    the same numbers bit for bit. ``update``'s refusals the receiver of the loop can meet
+    (a fix that does not continue the stream, too many fixes waiting) stop the call before
+    anything changes and are recorded in ``counts`` (``loop_estimate`` raises them)."""
+    c, st = arrays.coef, arrays.state
+    fs = arrays.fs_hz
+    k = samples.gyro_b.shape[0]
+    gnss = samples.gnss
+    m = gnss.shape[0]
+    if m and not gnss[0, FIX_LAYOUT.t_s] > st[S_LAST_FIX]:
+        _loop_fault(arrays, LOOP_FAULT_STREAM, 0)
+        return
+    n_pending = int(st[S_PEND_N])
+    n_valid = 0
+    for j in range(m):
+        if gnss[j, FIX_LAYOUT.valid] != 0.0:
+            n_valid += 1
+    fx = np.empty((n_pending + n_valid, FIX_COLS))
+    for i in range(n_pending):
+        for a in range(FIX_COLS):
+            fx[i, a] = st[S_PEND + FIX_COLS * i + a]
+    i = n_pending
+    v = FIX_LAYOUT.vel_w
+    for j in range(m):
+        if gnss[j, FIX_LAYOUT.valid] != 0.0:
+            fx[i, 0], fx[i, 1] = gnss[j, FIX_LAYOUT.t_s], gnss[j, FIX_LAYOUT.t_arrival_s]
+            finite = True
+            for a in range(3):
+                fx[i, 2 + a] = gnss[j, v + a]
+                finite = finite and math.isfinite(gnss[j, v + a])
+            fx[i, 5] = 1.0 if finite else 0.0
+            i += 1
+    rows = fx.shape[0]
+    t_last = c[C_T0] + (st[S_N] + k - 1) / fs
+    if rows and (k == 0 or fx[rows - 1, 1] > t_last + 1e-9):
+        waiting = rows
+        if k:
+            waiting = 0
+            for i in range(rows):
+                if fx[i, 1] > t_last + 1e-9:
+                    waiting += 1
+        if waiting > PENDING_CAPACITY:
+            _loop_fault(arrays, LOOP_FAULT_WAITING, waiting)
+            return
+    capacity = rows + int(math.ceil(k / (c[C_WINDOW] * fs))) + 2
+    if capacity > arrays.updates.shape[0]:
+        _loop_fault(arrays, LOOP_FAULT_UPDATES, capacity)
+        return
+    arrays.counts[LOOP_ROWS] = _gnss_batch(c, st, samples.gyro_b, samples.accel_b, samples.mag_b, samples.imu_flags, fx,
+                                           arrays.q_wb[:k], arrays.flags[:k], arrays.gyro_bias_b[:k],
+                                           arrays.tilt_sigma_rad[:k], arrays.updates[:capacity])
+    arrays.counts[LOOP_FAULT] = 0
+    if m:
+        st[S_LAST_FIX] = gnss[m - 1, FIX_LAYOUT.t_s]

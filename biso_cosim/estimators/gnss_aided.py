@@ -129,7 +129,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -154,6 +154,7 @@ __all__ = [
     "GnssComplementaryEstimator",
     "GnssKalmanEstimator",
     "GnssAidedEstimate",
+    "GnssLoopArrays",
     "UPDATE_DTYPE",
     "UPDATE_KINDS",
     "gnss_coefficients",
@@ -512,6 +513,60 @@ class _GnssAided(Estimator):
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:  # pragma: no cover
         raise NotImplementedError("GNSS-aided estimators run through update()")
+
+    # -- in the co-simulation's period call (biso_cosim.loop) ---------------------------
+
+    loop_kernel = K.gnss_loop
+    loop_views = False  # (the updates record is made for each period)
+
+    def loop_arrays(self, bound: int) -> "GnssLoopArrays":
+        """The arrays of ``loop_kernel`` (see ``Estimator.loop_arrays``): coefficients and
+        state, the outputs of ``update`` for up to ``bound`` samples, and room for the update
+        rows of a period (the fixes of the loop's receiver: at most 10 Hz, a sensor of at
+        least 4 Hz, so fewer than 3 per sample, plus those waiting and the unaided windows;
+        a period that needs more is refused loudly, see ``loop_estimate``)."""
+        kalman = self._coef[K.C_MODE] == K.MODE_KALMAN
+        windows = int(math.ceil(bound / (self._coef[K.C_WINDOW] * self.fs_hz)))
+        room = 2 * K.PENDING_CAPACITY + 4 * bound + windows + 2
+        return GnssLoopArrays(self._coef, self._state, self.fs_hz, np.empty((bound, 4)),
+                              np.empty(bound, dtype=np.int64), np.empty((bound if kalman else 0, 3)),
+                              np.empty((bound if kalman else 0, 2)), np.empty((room, K.UPD_COLS)),
+                              np.zeros(3, dtype=np.int64))
+
+    def loop_estimate(self, arrays: "GnssLoopArrays", k: int) -> GnssAidedEstimate:
+        """The estimate of the last period call's k samples, as ``update`` returns it (the
+        updates record made from the call's rows); raises what ``update`` would have raised
+        on the period's fixes (the call then changed nothing of the estimator)."""
+        fault = arrays.counts[K.LOOP_FAULT]
+        if fault:
+            value = int(arrays.counts[K.LOOP_FAULT + 1])
+            if fault == K.LOOP_FAULT_STREAM:
+                raise ValueError(f"{self.method}: gnss.t_s must continue the stream: the period's first fix is not "
+                                 f"after the last fix already given (t = {self._state[K.S_LAST_FIX]!r} s); the receiver and "
+                                 "the estimator are not in step (a state restored into one of them alone?)")
+            if fault == K.LOOP_FAULT_WAITING:
+                raise ValueError(f"{self.method}: gnss: {value} fixes arrive after the last IMU sample of the period; "
+                                 f"at most {K.PENDING_CAPACITY} may wait")
+            raise RuntimeError(f"{self.method}: a period needs {value} update rows, more than the "
+                               f"{arrays.updates.shape[0]} of the loop's arrays")
+        kalman = self._coef[K.C_MODE] == K.MODE_KALMAN
+        return GnssAidedEstimate(arrays.q_wb[:k], arrays.flags[:k], arrays.gyro_bias_b[:k] if kalman else None,
+                                 arrays.tilt_sigma_rad[:k] if kalman else None,
+                                 _updates_record(arrays.updates[:arrays.counts[K.LOOP_ROWS]]))
+
+
+class GnssLoopArrays(NamedTuple):
+    """A GNSS-aided estimator's arrays in the period call (``loop_arrays``)."""
+
+    coef: np.ndarray
+    state: np.ndarray
+    fs_hz: float
+    q_wb: np.ndarray
+    flags: np.ndarray
+    gyro_bias_b: np.ndarray  # (bound, 3) Kalman, (0, 3) complementary
+    tilt_sigma_rad: np.ndarray  # (bound, 2) Kalman, (0, 2) complementary
+    updates: np.ndarray  # (room, UPD_COLS) rows of the updates record
+    counts: np.ndarray  # (3,) int64: the update rows of the last call; a fault and its value (``K.LOOP_*``)
 
 
 _NO_FIXES = np.empty((0, K.FIX_COLS))  # (never written: the kernel only reads fixes)

@@ -49,7 +49,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
@@ -64,6 +64,8 @@ __all__ = [
     "TimeOutage",
     "ZoneOutage",
     "GNSS_PROFILES",
+    "FIX_LAYOUT",
+    "GnssLoopArrays",
     "CONSUMER",
     "IDEAL",
     "gnss_profile_table",
@@ -366,6 +368,22 @@ class GnssFixes:
 # Kernel
 # --------------------------------------------------------------------------------------
 
+class FixLayout(NamedTuple):
+    """Where each quantity sits in a fix row (the receiver's output rows, ``GnssFixes`` in
+    one (m, width) array: the co-simulation's ``PeriodSamples.gnss``): the first column of each."""
+
+    t_s: int = 0
+    t_arrival_s: int = 1
+    pos_w: int = 2  # (3) ENU, m
+    vel_w: int = 5  # (3) ENU, m/s
+    valid: int = 8  # 1.0 a fix, 0.0 an epoch without one
+    width: int = 9
+
+
+FIX_LAYOUT = FixLayout()
+"""The columns of a fix row (``FixLayout``)."""
+
+
 # coefficients
 (_C_FIN, _C_RATE, _C_LAT, _C_ACQ, _C_PHI_P, _C_PHI_V) = range(6)
 _C_SIG = 6  # stationary σ of the correlated parts: pos (h, h, v), vel (h, h, v)
@@ -378,7 +396,7 @@ _S_N, _S_EPOCH, _S_STARTED, _S_ACQ_UNTIL, _S_PENDING = range(5)
 _S_PREV = 5  # last input sample: pos (3), vel (3)
 _S_GM = 11  # correlated errors: pos (3), vel (3)
 _S_QUEUE = 17
-_Q_COLS = 9  # t_s, t_arrival, pos (3), vel (3), valid
+_Q_COLS = FIX_LAYOUT.width  # a fix row (FIX_LAYOUT)
 _Q_CAP = 16
 _S_SIZE = _S_QUEUE + _Q_COLS * _Q_CAP
 
@@ -485,6 +503,37 @@ def _gnss_simulate(c, st, rng, zones, windows, pos, vel, out):
     return k
 
 
+@jit
+def _receiver_check(arrays, pos, vel):
+    """Whether the receiver takes these input rows (every position and velocity finite): the
+    loop's check before the period's chip runs (``GnssReceiver.loop_check``)."""
+    for i in range(pos.shape[0]):
+        for a in range(3):
+            if not (math.isfinite(pos[i, a]) and math.isfinite(vel[i, a])):
+                return False
+    return True
+
+
+@jit
+def _receiver_loop(arrays, pos, vel):
+    """``GnssReceiver.simulate_rows`` on checked rows in the period call: the fixes delivered
+    into ``arrays.fixes``; returns their number."""
+    return _gnss_simulate(arrays.coef, arrays.state, arrays.rng, arrays.zones, arrays.windows, pos, vel, arrays.fixes)
+
+
+class GnssLoopArrays(NamedTuple):
+    """The receiver's arrays in the co-simulation's period call (``GnssReceiver.loop_arrays``):
+    coefficients, state and random stream (advanced in place), outage zones and windows, and
+    the output fix rows (``FIX_LAYOUT``) of one call."""
+
+    coef: np.ndarray
+    state: np.ndarray
+    rng: np.ndarray
+    zones: np.ndarray
+    windows: np.ndarray
+    fixes: np.ndarray
+
+
 # --------------------------------------------------------------------------------------
 # The receiver
 # --------------------------------------------------------------------------------------
@@ -557,6 +606,8 @@ class GnssReceiver:
         self._coef = self._coefficients()
         self._seed = seed
         self._seed_sequence = np.random.SeedSequence(seed)
+        self.arrays_version = 0
+        """Counts the replacements of the state arrays (``loop_arrays``): reset, set_state."""
         self._new_state()
 
     def _coefficients(self) -> np.ndarray:
@@ -576,6 +627,7 @@ class GnssReceiver:
     def _new_state(self) -> None:
         self._state = np.zeros(_S_SIZE)
         self._rng = seed_state(self._seed_sequence)
+        self.arrays_version += 1
 
     # ---- public ------------------------------------------------------------------------
 
@@ -610,6 +662,7 @@ class GnssReceiver:
         if s.shape != (_S_SIZE,) or r.shape != (4,) or r.dtype != np.uint64:
             raise ValueError("state does not come from GnssReceiver.get_state()")
         self._state, self._rng = s.copy(), r.copy()
+        self.arrays_version += 1
 
     def simulate(self, pos_w: Any, vel_w: Any) -> GnssFixes:
         """Run the receiver over the next input samples; return the fixes delivered meanwhile.
@@ -621,6 +674,11 @@ class GnssReceiver:
         Input sample i of the stream is the truth at ``i / input_rate_hz`` since the reset.
         A refused call (wrong shape, non-finite values) changes nothing.
         """
+        return self.fixes_of(self.simulate_rows(pos_w, vel_w))
+
+    def simulate_rows(self, pos_w: Any, vel_w: Any) -> np.ndarray:
+        """``simulate`` without the record: the fixes as (m, 9) rows (``FIX_LAYOUT``), without
+        the geodetic position (``fixes_of`` adds it)."""
         p, v = _rows3("pos_w", pos_w), _rows3("vel_w", vel_w)
         if p.shape[0] != v.shape[0]:
             raise ValueError(f"pos_w and vel_w must have the same number of rows, got {p.shape[0]} and {v.shape[0]}")
@@ -628,20 +686,44 @@ class GnssReceiver:
             bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
             if bad.size:
                 raise ValueError(f"{name} must be finite: row {bad[0]} is not (nothing was simulated)")
-        n = p.shape[0]
-        capacity = _Q_CAP + int(math.ceil(n / self.input_rate_hz * self.rate_hz)) + 2
-        out = np.empty((capacity, _Q_COLS))
+        out = np.empty((self._capacity(p.shape[0]), _Q_COLS))
         k = _gnss_simulate(self._coef, self._state, self._rng, self._zones, self._windows, p, v, out)
-        out = out[:k]
-        valid = out[:, 8] != 0.0
+        return out[:k]
+
+    def _capacity(self, n: int) -> int:
+        """The most fixes a call over n input samples can deliver (the queue, and the epochs)."""
+        return _Q_CAP + int(math.ceil(n / self.input_rate_hz * self.rate_hz)) + 2
+
+    def fixes_of(self, rows: np.ndarray) -> GnssFixes:
+        """The record of fix rows (``simulate_rows``, or several calls' rows concatenated),
+        with the WGS-84 position of each valid fix (``pymap3d.enu2geodetic`` about the site;
+        element by element, so the same numbers whatever the rows are concatenated from)."""
+        k = rows.shape[0]
+        valid = rows[:, FIX_LAYOUT.valid] != 0.0
         lat, lon, alt = (np.full(k, np.nan) for _ in range(3))
         if valid.any():
             import pymap3d
 
-            e, nn, u = out[valid, 2], out[valid, 3], out[valid, 4]
+            p = FIX_LAYOUT.pos_w
+            e, nn, u = rows[valid, p], rows[valid, p + 1], rows[valid, p + 2]
             lat[valid], lon[valid], alt[valid] = pymap3d.enu2geodetic(e, nn, u, *self.origin)
-        return GnssFixes(out[:, 0].copy(), out[:, 1].copy(), out[:, 2:5].copy(), out[:, 5:8].copy(),
-                         lat, lon, alt, valid)
+        p, v = FIX_LAYOUT.pos_w, FIX_LAYOUT.vel_w
+        return GnssFixes(rows[:, FIX_LAYOUT.t_s].copy(), rows[:, FIX_LAYOUT.t_arrival_s].copy(),
+                         rows[:, p:p + 3].copy(), rows[:, v:v + 3].copy(), lat, lon, alt, valid)
+
+    # ---- in the co-simulation's period call (biso_cosim.loop) --------------------------
+
+    loop_check = _receiver_check
+    """``check(arrays, pos_w, vel_w) -> bool``: whether ``simulate_rows`` would take these rows."""
+    loop_kernel = _receiver_loop
+    """``kernel(arrays, pos_w, vel_w) -> m``: ``simulate_rows`` on checked rows, the m fixes in
+    ``arrays.fixes`` (the same arithmetic, so the same fixes bit for bit)."""
+
+    def loop_arrays(self, n: int) -> GnssLoopArrays:
+        """The arrays ``loop_kernel`` runs on for calls of n input samples: the receiver's own
+        (advanced in place; ``arrays_version`` counts their replacements) and the output rows."""
+        return GnssLoopArrays(self._coef, self._state, self._rng, self._zones, self._windows,
+                              np.empty((self._capacity(n), _Q_COLS)))
 
     def __repr__(self) -> str:
         return (f"GnssReceiver(profile={self.profile.name!r}, seed={self._seed!r}, rate={self.rate_hz:g} Hz, "

@@ -9,7 +9,7 @@ a chunk is the truth at ``t0 + k·dt``, where ``t0`` was the simulation time bef
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import mujoco
 import numpy as np
@@ -22,7 +22,7 @@ from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.drivetrain import AIR_DENSITY_KG_M3, DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
 
-__all__ = ["Truth", "VehicleSim", "ControlArrays"]
+__all__ = ["Truth", "VehicleSim", "ControlArrays", "HistoryArrays"]
 
 
 class ControlArrays(NamedTuple):
@@ -35,6 +35,23 @@ class ControlArrays(NamedTuple):
     actuators: np.ndarray
     wheel_rates: np.ndarray
     drivetrain: np.ndarray
+
+
+class HistoryArrays(NamedTuple):
+    """Where a kernel reads a control period's sensordata rows from (``_history_rows``, the
+    co-simulation's period call): MuJoCo's sensor history rings (``data.history``), their
+    layout (per sensor: history address, samples, sensordata address, width; int64), the
+    warning counters (``data.warning.number``), the current ``data.sensordata``, the period's
+    rows (steps_per_control, nsensordata) the rows are read into, and ``gather``, the
+    sensordata columns of ``Truth``'s columns 1… in order (``_pack_rows``). The same arrays
+    for the simulator's life."""
+
+    history: np.ndarray
+    layout: np.ndarray
+    warnings: np.ndarray
+    sensordata: np.ndarray
+    rows: np.ndarray
+    gather: np.ndarray
 
 
 def apply_command(controls: ControlArrays, command: DriverCommand) -> None:
@@ -189,6 +206,16 @@ class VehicleSim:
                              np.arange(ix.vel_w.start, ix.vel_w.stop), [ix.rear_axle_vel_b.start],
                              np.arange(ix.wheel_rates.start, ix.wheel_rates.stop),
                              [ix.steering_angle.start]].astype(np.int64)
+        self._history_arrays = HistoryArrays(self._history, self._history_layout, self._warnings, self._sensordata,
+                                             self._rows, self._gather)
+        self.row_fault: Callable[[np.ndarray, int], None] | None = None
+        """Fault injection (tests, robustness studies): None (default), or a callable
+        ``fault(rows, first_step)`` given each period's sensordata rows (n, nsensordata; the
+        columns ``index`` names) and the index of its first step, after the physics and
+        before anything reads them, which may change them in place (a NaN rate, a bad
+        position) as a faulty sensor bus would. While it is set, every period is stepped
+        with its rows read out of MuJoCo's history at once (``step``'s way), so that the
+        fault sees them; MuJoCo's own state is not changed by it."""
         self.reset()
 
     # ------------------------------------------------------------------ placement
@@ -244,6 +271,11 @@ class VehicleSim:
         return self._controls
 
     @property
+    def history_arrays(self) -> HistoryArrays:
+        """The arrays a kernel reads a period's sensordata rows from (``HistoryArrays``)."""
+        return self._history_arrays
+
+    @property
     def sensordata(self) -> np.ndarray:
         """MuJoCo's sensordata now (``data.sensordata``, one array viewing the model's
         buffer for the simulator's life, so a kernel may hold it): the columns ``index``
@@ -295,6 +327,8 @@ class VehicleSim:
             done += k
         first = self.steps_done
         self.steps_done += n
+        if self.row_fault is not None:
+            self.row_fault(rows, first)
         return rows, first
 
     def _step_period(self) -> tuple[np.ndarray | None, int, float]:
@@ -302,9 +336,10 @@ class VehicleSim:
         the sensors' history for the caller to read (``_history_rows`` into ``_rows``; the
         co-simulation's period kernel does, saving a kernel call), or ``_restep`` when that
         fails. Returns (None, index of the first step, time at the period's start); a period
-        longer than the history is stepped by ``_step_rows`` instead: (its rows, first, 0)."""
+        longer than the history, or any period while ``row_fault`` is set, is stepped by
+        ``_step_rows`` instead: (its rows, first, 0)."""
         n = self.steps_per_control
-        if n > self._history_steps:
+        if n > self._history_steps or self.row_fault is not None:
             return (*self._step_rows(), 0.0)
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
