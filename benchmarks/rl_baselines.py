@@ -105,6 +105,8 @@ def train(name, algo, timesteps, seed, n_envs=1):
             if self.num_timesteps // chunk > len(curve):
                 curve.append((self.num_timesteps, float(np.mean(returns)) if returns else float("nan"), len(returns)))
                 returns.clear()
+                steps, mean, count = curve[-1]
+                print(f"    ({name} {algo}) {steps:>8}: {mean:10.1f}  ({count} episodes)", flush=True)
             return True
 
     vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
@@ -130,6 +132,8 @@ def main():
     parser.add_argument("--seeds", type=int, default=5, help="evaluation episodes (seeds 1000, 1001, ...)")
     parser.add_argument("--speed-steps", type=int, default=4096, help="steps of the steps/s measurement (0: none)")
     parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--save-dir", default=None, help="directory for the trained models (<env>_<algo>.zip and "
+                                                         "its VecNormalize <env>_<algo>_vecnormalize.pkl)")
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
@@ -146,6 +150,13 @@ def main():
         rows = baselines(name, env, seeds)
         for algo in args.algos:
             model, vec, curve, rate = train(name, algo, args.timesteps, args.seed)
+            if args.save_dir:
+                import pathlib
+
+                out = pathlib.Path(args.save_dir)
+                out.mkdir(parents=True, exist_ok=True)
+                model.save(out / f"{name}_{algo}.zip")
+                vec.save(str(out / f"{name}_{algo}_vecnormalize.pkl"))
             print(f"  {algo.upper()} learning curve (steps: mean training return over the episodes since the last row):")
             for steps, mean, count in curve:
                 print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")

@@ -290,15 +290,20 @@ class _Offscreen:
 
 
 class _Window:
-    """The interactive MuJoCo viewer following the chase camera (needs a display)."""
+    """The interactive MuJoCo viewer following the chase camera (needs a display), with the
+    road and the sky in its scene (``_render.decorate_scene``)."""
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, camera: str):
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, camera: str, route: Route):
         import mujoco.viewer
+
+        from biso_cosim.envs._render import decorate_scene
 
         self.model = model
         self._handle = mujoco.viewer.launch_passive(model, data, show_left_ui=False, show_right_ui=False)
         self._handle.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self._handle.cam.fixedcamid = model.camera(camera).id
+        with self._handle.lock():  # the road and the sky of the rgb_array frames (``_render``)
+            decorate_scene(self._handle.user_scn, route, model)
 
     def render(self, data: mujoco.MjData) -> None:
         if self._handle.is_running():
@@ -467,12 +472,24 @@ class CosimEnv(gym.Env):
         """Simulated time ``reset`` spends before the first observation (one control period)."""
         return 1.0 / self._sim_options["control_rate_hz"]
 
+    @property
+    def _rebuilt_each_episode(self) -> bool:
+        """Whether a fixed route's co-simulation is built anew each episode (a subclass whose
+        ``_episode_profile`` varies; random routes are rebuilt anyway)."""
+        return False
+
+    def _episode_profile(self, sensor_seed: int) -> Profile:
+        """The sensor profile of the episode whose part is drawn from ``sensor_seed``: the
+        environment's own (a subclass may vary it per episode, with ``_rebuilt_each_episode``)."""
+        return self._sim_options["sensor_profile"]
+
     def _build(self, route: Route, seed: int) -> CoSimulation:
         self._check_route(route)
         duration = self._episode_duration_s or self._default_duration_s(route)
         # each step's outputs are consumed within the step: the co-simulation reuses their arrays
+        options = {**self._sim_options, "sensor_profile": self._episode_profile(seed)}
         return CoSimulation(route, duration_s=duration + self._reset_time_s(), seed=seed, reuse_outputs=True,
-                            **self._sim_options)
+                            **options)
 
     def _begin_episode(self, seed: int | None, options: dict[str, Any] | None) -> dict[str, Any]:
         """Seed the episode, set up its route and sensor, and rewind the co-simulation."""
@@ -489,6 +506,8 @@ class CosimEnv(gym.Env):
         if self._route_options is not None:
             route_seed = _int_seed(route_sequence)
             self._sim = self._build(random_route(route_seed, **self._route_options), seed=sensor_seed)
+        elif self._rebuilt_each_episode:
+            self._sim = self._build(self._sim.route, seed=sensor_seed)
         else:
             self._sim.seed = sensor_seed
             self._sim.reset()
@@ -593,7 +612,7 @@ class CosimEnv(gym.Env):
                 self._viewer = _Offscreen(model, *self._render_size, camera=self.CAMERA,
                                           road=road_geoms(self._sim.route))
             else:
-                self._viewer = _Window(model, data, camera=self.CAMERA)
+                self._viewer = _Window(model, data, camera=self.CAMERA, route=self._sim.route)
         return self._viewer.render(data)
 
     def close(self) -> None:

@@ -20,7 +20,7 @@ from biso_cosim.envs._kernels import _angles_to, _tune_closed, _tuning_work
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
-__all__ = ["GainTuningEnv", "DEFAULT_TUNING", "CROSS_LINK_RATIO"]
+__all__ = ["GainTuningEnv", "DEFAULT_TUNING", "CROSS_LINK_RATIO", "DIE_TEMPERATURE_RANGE_C"]
 
 CROSS_LINK_RATIO = "cross_link_ratio"
 """The environment's own BISO parameter r = √3·k_p / k: with ``cutoff_hz`` it sets
@@ -35,6 +35,32 @@ DEFAULT_TUNING: dict[str, dict[str, tuple[float, float, str]]] = {
 [low, high] linearly or logarithmically (scale ``"linear"`` or ``"log"``)."""
 
 _SCALES = ("linear", "log")
+
+DIE_TEMPERATURE_RANGE_C = (-40.0, 85.0)
+"""The MPU-9250's operating range, °C ([PS] §3): the bounds of ``die_temperature_c``."""
+# the tag of the die temperature's random stream, drawn from the episode's sensor seed
+_TEMPERATURE_STREAM = 0x7E3D
+
+
+def _check_temperature(value: Any) -> float | tuple[float, float] | None:
+    """``die_temperature_c``: None, a number or (low, high) in the operating range (ValueError)."""
+    low, high = DIE_TEMPERATURE_RANGE_C
+    expected = (f"die_temperature_c must be None, a number or (low, high) with {low:g} <= low < high <= "
+                f"{high:g} (°C, the MPU-9250's operating range), got {value!r}")
+    if value is None:
+        return None
+    if isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool):
+        if not low <= float(value) <= high:  # (NaN fails too)
+            raise ValueError(expected)
+        return float(value)
+    try:
+        a, b = value
+        a, b = float(a), float(b)
+    except (TypeError, ValueError):
+        raise ValueError(expected) from None
+    if not low <= a < b <= high:
+        raise ValueError(expected)
+    return (a, b)
 
 
 def _check_tuning(estimator: str, tuning: Mapping[str, Any]) -> dict[str, tuple[float, float, str]]:
@@ -81,12 +107,20 @@ class GainTuningEnv(CosimEnv, EzPickle):
     procedurally generated route each episode (`route="random"`, 80–100 s: long enough for
     the gyro's drift to matter) and a raw MPU-9250 part (`sensor_profile="mpu9250"`: the
     datasheet's turn-on bias, scale-factor and misalignment spreads and noise, uncalibrated,
-    a new part every episode). Too little correction lets the gyro bias integrate into tens
+    a new part every episode) at a die temperature drawn per episode (`die_temperature_c`,
+    5–45 °C: the part's drawn bias and scale-factor temperature coefficients, ±0.48 °/s/°C for
+    the gyro's bias, move its errors by their coefficient × (T − 25 °C); the temperature is
+    constant within an episode, since the co-simulation's loop runs the chip at one die
+    temperature). Too little correction lets the gyro bias integrate into tens
     of degrees; too much follows the accelerometer through the car's accelerations and the
     magnetometer's errors. The best constant f_c found by search (`biso_cosim.envs.gain_oracle`)
     lies inside the range and changes from episode to episode (0.04–0.14 Hz on the evaluation
-    seeds, against the paper's 10 Hz); the best cross-link ratio is mostly r = 0, the edge of
-    its range (no cross-links). `docs/envs.md` tabulates the oracle, the paper's gains, the best
+    seeds, against the paper's 10 Hz). The best cross-link ratio is r = 0 (no cross-links) on
+    most episodes: at the episode's best f_c the error grows from r = 0 on (a stationary
+    minimum, not one the range cuts off), and r < 0 lies outside BISO's domain (the estimator
+    refuses k_p < 0: its poles −k ± i√3 k_p only swap), so r = 0 is the edge of the estimator's
+    gains, not of a chosen range; at weak correction (f_c ≈ 0.03 Hz) some episodes are best
+    with r ≈ 0.7. `docs/envs.md` tabulates the oracle, the paper's gains, the best
     single constant and trained policies (`benchmarks/rl_baselines.py`). The earlier task, the
     calibrated part on `figure8`, is `route="figure8", sensor_profile="mpu9250_calibrated"`
     (its optimum is the weakest correction: the range decides it).
@@ -151,11 +185,15 @@ class GainTuningEnv(CosimEnv, EzPickle):
         "estimator_params": "fixed parameters of both copies; the baseline runs with them and its defaults",
         "tuning": "tuned parameters: name → (low, high, `\"linear\"` or `\"log\"`); "
                   "None: `DEFAULT_TUNING[estimator]`",
+        "die_temperature_c": "the MPU-9250's die temperature in the episodes, °C: (low, high) drawn uniformly per "
+                             "episode from the sensor seed, a number, or None (the profile's `temperature.default`, "
+                             "25 °C for the built-in profiles); constant within an episode",
     }
 
     def __init__(self, *, route: str | Route = "random", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None,
                  tuning: Mapping[str, tuple[float, float, str]] | None = None,
+                 die_temperature_c: float | tuple[float, float] | None = (5.0, 45.0),
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = "mpu9250", sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -171,6 +209,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
                                  f"give tuning=...")
             tuning = DEFAULT_TUNING[estimator]
         self.tuning = _check_tuning(estimator, tuning)
+        self.die_temperature_c = _check_temperature(die_temperature_c)
+        """The die temperature of the episodes: None (the profile's default), °C, or (low, high)."""
         self.estimator = estimator
         fixed = dict(estimator_params or {})
         self.estimator_params = dict(fixed)
@@ -240,6 +280,30 @@ class GainTuningEnv(CosimEnv, EzPickle):
                 raise ValueError(f"tuning: the corner {changes} of the tuning box is not a valid "
                                  f"{self.estimator!r}: {exc}") from None
 
+    # ------------------------------------------------------------------ episodes
+    @property
+    def _rebuilt_each_episode(self) -> bool:
+        return isinstance(self.die_temperature_c, tuple)  # (a new die temperature: a new profile)
+
+    def episode_temperature_c(self, sensor_seed: int) -> float | None:
+        """The die temperature (°C) of the episode whose part is drawn from ``sensor_seed``
+        (None: the profile's default)."""
+        t = self.die_temperature_c
+        if isinstance(t, tuple):
+            rng = np.random.default_rng(np.random.SeedSequence([int(sensor_seed), _TEMPERATURE_STREAM]))
+            return float(rng.uniform(*t))
+        return t
+
+    def _episode_profile(self, sensor_seed: int):
+        """The profile at the episode's die temperature: the part's biases and scale factors
+        move by its drawn temperature coefficients × (T − ``temperature.reference``)
+        (``biso_cosim.sensors.mpu9250``)."""
+        profile = self._sim_options["sensor_profile"]
+        t = self.episode_temperature_c(sensor_seed)
+        if t is None:
+            return profile
+        return profile.replace(name=f"{profile.name}@{t:.2f}C", temperature__default=t)
+
     # ------------------------------------------------------------------ conversions
     def params_from_action(self, action: Any) -> dict[str, float]:
         """The physical parameter values a normalised action stands for."""
@@ -279,6 +343,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
+        info["die_temperature_c"] = float(self._sim.imu.profile.si("temperature.default"))
         tuned = self._sim.estimators["tuned"]
         tuned.set_params(**self._initial)  # Estimator.reset keeps parameters
         # The coefficients the actions' gains are written into while they stay these: BISO's

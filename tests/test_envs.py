@@ -161,6 +161,65 @@ def test_rendered_frames_show_the_road_and_a_sky():
     env.close()
 
 
+def test_human_viewer_scene_has_the_road_and_a_sky():
+    """The interactive viewer's extra scene (its ``user_scn``, filled by ``decorate_scene``):
+    the rgb_array frames' road, and a sky of boxes that encloses the route inside the far
+    plane. Rendered offscreen from the chase camera (no window), the frame has no background
+    left: the sky covers it, in the sky's colours (blue over red)."""
+    import mujoco
+
+    from biso_cosim.envs._render import SKY_EMISSION, decorate_scene, road_geoms, sky_geoms
+
+    env = gym.make("biso_cosim/Driving-v0", route="random", **SHORT)
+    env.reset(seed=0)
+    core = env.unwrapped
+    model, route = core.sim.vehicle.model, core.route
+    scene = mujoco.MjvScene(model, maxgeom=10000)  # (the viewer's: mujoco.viewer.launch_passive)
+    decorate_scene(scene, route, model)
+    far_m = float(model.vis.map.zfar * model.stat.extent)
+    road, sky = road_geoms(route), sky_geoms(route, far_m)
+    assert scene.ngeom == len(road) + len(sky)
+    for i, (size, pos, _, rgba) in enumerate(road + sky):
+        geom = scene.geoms[i]
+        np.testing.assert_allclose(geom.pos, pos, rtol=1e-6)
+        np.testing.assert_allclose(geom.rgba, rgba, rtol=1e-6)
+        assert geom.emission == (0.0 if i < len(road) else SKY_EMISSION)
+    path = route.path
+    wall = np.array([pos for _, pos, _, _ in sky[:-1]])
+    # every panel stands beyond every point of the route and within the far plane of all of them
+    distances = np.hypot(wall[:, None, 0] - path.x_m[None, :], wall[:, None, 1] - path.y_m[None, :])
+    assert distances.min() > 10.0 and distances.max() < far_m
+    # the wall closes around the route: panels at every bearing from its centre, no gap of more than 10°
+    centre = sky[-1][1][:2]
+    bearings = np.sort(np.arctan2(wall[:, 1] - centre[1], wall[:, 0] - centre[0]))
+    assert np.max(np.diff(np.concatenate([bearings, bearings[:1] + 2.0 * np.pi]))) < np.radians(10.0)
+    assert sky[-1][1][2] > wall[:, 2].max()  # the lid over the wall
+    if not gl_available():
+        return
+    width, height = 160, 90
+    context = _gl_context(width, height)
+    try:
+        full = mujoco.MjvScene(model, maxgeom=20000)
+        camera = mujoco.MjvCamera()
+        camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, model.camera("chase").id
+        mujoco.mjv_updateScene(model, core.sim.vehicle.data, mujoco.MjvOption(), None, camera,
+                               mujoco.mjtCatBit.mjCAT_ALL, full)
+        decorate_scene(full, route, model)  # (the viewer appends its user_scn so)
+        gl = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, gl)
+        rect = mujoco.MjrRect(0, 0, width, height)
+        pixels, depth = np.empty((height, width, 3), np.uint8), np.empty((height, width), np.float32)
+        mujoco.mjr_render(rect, full, gl)
+        mujoco.mjr_readPixels(pixels, depth, rect, gl)
+        gl.free()
+    finally:
+        context.free()
+    frame, depth = np.flipud(pixels).astype(int), np.flipud(depth)
+    assert (depth >= 1.0).mean() == 0.0  # no black background anywhere
+    top = frame[:5]
+    assert (top[..., 2] > top[..., 0] + 20).mean() > 0.9  # sky: blue over red
+
+
 def test_human_mode_only_with_a_display():
     from biso_cosim.envs import AttitudeEstimationEnv
     from biso_cosim.envs._common import display_available

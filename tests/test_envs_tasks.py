@@ -235,6 +235,42 @@ def test_gain_tuning_reward_is_the_mean_error_over_the_step():
         assert reward == -total / len(tuned) == info["reward_attitude"] == -info["error_rad"]
 
 
+def test_die_temperature_moves_the_gyro_bias_by_the_parts_tempco():
+    """At rest, the same part at 45 °C and at 25 °C (the reference) differs in its gyro output
+    by the drawn bias tempco × 20 °C, rotated from the chip's axes into the body's (the
+    kernel's bias + bias_tc·(T − T_ref), biso_cosim/sensors/_kernels.py), to the register's LSB."""
+    gyro = {}
+    for temperature in (25.0, 45.0):
+        env = gym.make("biso_cosim/GainTuning-v0", route="figure8", sensor_noise=False, sensor_seed=7,
+                       die_temperature_c=temperature, **SHORT).unwrapped
+        _, info = env.reset(seed=0)
+        assert info["die_temperature_c"] == temperature
+        gyro[temperature] = env.physical_observation()["imu"][:, 0:3].copy()
+    imu = env.sim.imu
+    expected = imu.r_bc @ (imu.errors.gyro.bias_tempco * 20.0)  # rad/s, body axes
+    lsb = 1.0 / imu.registers.gyro_lsb_per_unit  # rad/s
+    assert np.max(np.abs(expected)) > 20.0 * lsb  # (a part whose drift the registers resolve)
+    np.testing.assert_allclose(gyro[45.0] - gyro[25.0], np.broadcast_to(expected, gyro[45.0].shape), atol=2.0 * lsb)
+
+
+def test_die_temperature_is_drawn_per_episode_from_the_sensor_seed():
+    env = gym.make("biso_cosim/GainTuning-v0", route="figure8", die_temperature_c=(5.0, 45.0), **SHORT).unwrapped
+    temperatures = [env.reset(seed=seed)[1]["die_temperature_c"] for seed in (0, 1, 2, 0)]
+    assert all(5.0 <= t <= 45.0 for t in temperatures) and len(set(temperatures[:3])) == 3
+    assert temperatures[3] == temperatures[0]  # reproducible under the seed
+    _, info = env.reset(seed=1)
+    assert info["die_temperature_c"] == env.episode_temperature_c(info["sensor_seed"])
+    assert env.sim.imu.profile.si("temperature.default") == info["die_temperature_c"]
+    fixed = gym.make("biso_cosim/GainTuning-v0", die_temperature_c=None, **SHORT)
+    assert fixed.reset(seed=0)[1]["die_temperature_c"] == 25.0  # the profile's default
+
+
+@pytest.mark.parametrize("value", [(45.0, 5.0), (-50.0, 20.0), 90.0, float("nan"), "warm", (1.0, 2.0, 3.0), True])
+def test_bad_die_temperature_is_refused(value):
+    with pytest.raises(ValueError, match="die_temperature_c must be"):
+        gym.make("biso_cosim/GainTuning-v0", die_temperature_c=value)
+
+
 @pytest.mark.parametrize(("tuning", "message"), [
     ({"k_magic": (0.1, 1.0, "log")}, "no parameter"),
     ({"cutoff_hz": (0.0, 1.0, "log")}, "low > 0"),
