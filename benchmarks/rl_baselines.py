@@ -94,6 +94,10 @@ def train(name, algo, timesteps, seed, n_envs=1):
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
+    import torch
+
+    # one thread: on a shared 2-core machine torch's second intra-op thread only spins
+    torch.set_num_threads(1)
     curve, returns = [], []
     chunk = max(timesteps // 10, 1)
 

@@ -34,7 +34,10 @@ def main():
     parser.add_argument("--save", default=None, help="path of the saved model (.zip; its VecNormalize next to it)")
     args = parser.parse_args()
 
+    import torch
     from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    torch.set_num_threads(1)  # (a second intra-op thread only spins for SB3's small networks on 2 cores)
 
     vec = make_vec_env(ENVS[args.env], n_envs=args.n_envs, seed=0,
                        vec_env_cls=SubprocVecEnv if args.n_envs > 1 else None)
