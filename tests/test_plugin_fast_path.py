@@ -97,3 +97,34 @@ def test_restored_states_and_an_estimator_reset_between_calls_hold_on_the_compil
             outs[id(plugin)].append(plugin.step(**one(i)))
     _same(PluginOutput.concatenate(outs[id(fast)]), PluginOutput.concatenate(outs[id(general)]))
     assert fast.ticks == general.ticks == 1000
+
+
+def test_reused_outputs_hold_the_same_numbers_and_are_the_next_calls_buffers():
+    """``reuse_outputs=True``: each output's arrays are views of the plug-in's buffers (the
+    next call writes them again); copied at once, every call's output equals the general
+    path's, one tick or blocks per call."""
+    h = 0.001
+    frames = HostFrames("NED", "FRD", "xyzw")
+    truth = _truth(frames, h)
+    n = truth["t_s"].shape[0]
+    kwargs = dict(tick_s=h, frames=frames, seed=1, estimators=ESTIMATORS, speed_from_velocity=True,
+                  mounting=Mounting((0.3, -0.1, 0.2)))
+    general = ImuPlugin(**kwargs)
+    general.fast_path = False
+    reference = general.step(**truth)
+
+    reused = ImuPlugin(**kwargs, reuse_outputs=True)
+    outs = [reused.step(**{k: v[i] for k, v in truth.items()}) for i in range(n)]
+    latched = [out for out in outs if len(out)]
+    assert all(out is latched[0] for out in latched)  # one object per number of samples, written again
+    assert np.array_equal(latched[0].gyro_b, reference.gyro_b[-1:])  # it holds the last call's sample
+
+    reused.reset()
+    parts = [reused.step(**{k: v[i] for k, v in truth.items()}).copy() for i in range(n)]
+    _same(reference, PluginOutput.concatenate(parts))
+    reused.reset()
+    cuts = np.unique(np.concatenate(([0, n], np.random.default_rng(1).integers(1, n, 40))))
+    parts = [reused.step(**{k: v[a:b] for k, v in truth.items()}).copy() for a, b in zip(cuts[:-1], cuts[1:])]
+    _same(reference, PluginOutput.concatenate(parts))
+    with pytest.raises(TypeError, match="reuse_outputs"):
+        ImuPlugin(tick_s=h, reuse_outputs="yes")

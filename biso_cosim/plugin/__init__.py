@@ -31,6 +31,9 @@ Semantics (the reference for every implementation of the plug-in, e.g. the FMU):
   degrees). Each estimator runs at the ODR on the samples, with the chip's flag bits as
   ``imu_flags`` where it takes them (as in the co-simulation; fmu/imu_plugin.py does not
   pass them yet: the numbers are the same while no flag is set).
+* **Reused outputs.** ``reuse_outputs=True``: the arrays a call returns are views of the
+  plug-in's buffers, written again by the next call (one ``PluginOutput`` per number of
+  samples, made once); ``PluginOutput.copy()`` keeps one. The numbers are the same.
 * **Lever arm.** The chip at r from the host's reference point (body axes) feels the
   specific force f + ω̇ × r + ω × (ω × r) and sits at p + q ∘ r ∘ q*. ω̇ is the host's
   ``alpha_b`` when given, else the slope (ω_k − ω_{k−1})/tick_s of the linear interpolation

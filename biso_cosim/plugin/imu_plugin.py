@@ -128,12 +128,17 @@ class ImuPlugin:
             given acceleration (default standard gravity, down).
         sensor_options: more keywords of ``MPU9250`` (``hard_iron_ut``, ``soft_iron``,
             ``vibration``).
+        reuse_outputs: False (default): each ``step`` returns arrays of its own. True: the
+            arrays of a ``PluginOutput`` are views of buffers the next ``step`` writes again
+            (one output object per number of samples is made once and returned again), for
+            hosts that are done with a tick's outputs before the next tick; ``copy()`` what
+            you keep. The same numbers either way, bit for bit.
     """
 
     def __init__(self, *, tick_s: float, frames: Any = None, profile: Any = "mpu9250_calibrated",
                  registers: Any = None, mounting: Mounting | None = None, seed: int | None = 0, site: Any = None,
                  estimators: Any = ("biso_plus",), speed_from_velocity: bool = False, gravity_w: Any = None,
-                 sensor_options: Mapping[str, Any] | None = None) -> None:
+                 sensor_options: Mapping[str, Any] | None = None, reuse_outputs: bool = False) -> None:
         if isinstance(tick_s, bool) or not isinstance(tick_s, (int, float, np.floating, np.integer)):
             raise TypeError(f"tick_s must be a number of seconds, got {tick_s!r}")
         if not (math.isfinite(tick_s) and tick_s > 0.0):
@@ -152,6 +157,9 @@ class ImuPlugin:
         if not isinstance(speed_from_velocity, (bool, np.bool_)):
             raise TypeError(f"speed_from_velocity must be True or False, got {speed_from_velocity!r}")
         self.speed_from_velocity = bool(speed_from_velocity)
+        if not isinstance(reuse_outputs, (bool, np.bool_)):
+            raise TypeError(f"reuse_outputs must be True or False, got {reuse_outputs!r}")
+        self.reuse_outputs = bool(reuse_outputs)
         g = self.frames.standard_gravity_w() if gravity_w is None else np.asarray(gravity_w, dtype=np.float64)
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise ValueError(f"gravity_w must be 3 finite numbers (m/s², host world axes), got {gravity_w!r}")
@@ -366,7 +374,7 @@ class ImuPlugin:
         plan = self._plan
         versions = list(map(_ARRAYS_VERSION, self._versioned))
         rows = max(n, 1 if plan is None else plan.rows)
-        floats, words, status_bytes, flags = self.sensor._outputs(rows, 0, 0)
+        floats, words, status_bytes, flags = self.sensor.output_arrays(rows)
         bound = flags.shape[0]
         sensor = SensorArrays(*self.sensor.loop_arrays(), 0, 0, 0.0)
         outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
@@ -383,7 +391,7 @@ class ImuPlugin:
                           outputs, truth, TickScratch.for_rows(rows),
                           tuple((type(est).loop_kernel, arrays) for _, est, arrays in in_loop))
         self._plan = _Plan(record, typeof(record), [None, None], rows, versions, (floats, words, status_bytes, flags),
-                           truth, tuple(in_loop), tuple(after))
+                           truth, tuple(in_loop), tuple(after), {})
         return self._plan
 
     @staticmethod
@@ -394,22 +402,34 @@ class ImuPlugin:
         return call
 
     def _output(self, plan: "_Plan", k: int) -> PluginOutput:
-        """The compiled call's k samples, truth and in-loop estimates (copies: the arrays are
-        the plan's, written again by the next call), and the estimators that run after it."""
-        floats, words, status_bytes, flags = plan.outputs
-        samples = self.sensor._samples(-1, k, (floats.copy(), words[:k].copy(), status_bytes[:k].copy(), flags.copy()),
-                                       0, 0)
-        truth, frames = plan.truth, self.frames
-        q_true = truth.q_wb[:k].copy()
+        """The compiled call's k samples, truth and in-loop estimates (views of the plan's
+        arrays, made once per k, with ``reuse_outputs``; else copies), and the estimators
+        that run after it."""
+        out = plan.views.get(k)
+        if out is None:
+            out = self._plan_output(plan, k)
+            if self.reuse_outputs:
+                plan.views[k] = out
+        if not plan.after:
+            return out
+        estimates = dict(out.estimates)
+        estimates.update(self._estimate(plan.after, out.samples, plan.truth.speed_mps[:k], out.q_true_wb))
+        return PluginOutput(out.t_s, out.samples, out.q_true_wb, {label: estimates[label] for label in self.estimators},
+                            self.frames)
+
+    def _plan_output(self, plan: "_Plan", k: int) -> PluginOutput:
+        """The first k rows of the plan's samples, truth and in-loop estimates: views with
+        ``reuse_outputs``, else copies (the next call writes the plan's arrays again)."""
+        own = _view if self.reuse_outputs else np.copy
+        samples = self.sensor.sample_views(tuple(map(own, plan.outputs)), k)
+        q_true = own(plan.truth.q_wb[:k])
         estimates = {}
-        for label, est, arrays in plan.in_loop:  # (the outputs every loop_arrays holds: biso_cosim.loop)
-            bias = arrays.gyro_bias_b[:k].copy() if est.estimates_bias else None
-            estimates[label] = EstimateOutput(Estimate(arrays.q_wb[:k].copy(), arrays.flags[:k].copy(), bias), q_true,
-                                              frames)
-        if plan.after:
-            estimates.update(self._estimate(plan.after, samples, truth.speed_mps[:k].copy(), q_true))
-            estimates = {label: estimates[label] for label in self.estimators}
-        return PluginOutput(truth.t_s[:k].copy(), samples, q_true, estimates, frames)
+        for label, est, arrays in plan.in_loop:
+            e = est.loop_estimate(arrays, k)
+            estimates[label] = EstimateOutput(Estimate(own(e.q_wb), own(e.flags),
+                                                       None if e.gyro_bias_b is None else own(e.gyro_bias_b)),
+                                              q_true, self.frames)
+        return PluginOutput(own(plan.truth.t_s[:k]), samples, q_true, estimates, self.frames)
 
     def _estimate(self, estimators: Any, samples: ImuSamples, speed: np.ndarray, q_true: np.ndarray
                   ) -> dict[str, EstimateOutput]:
@@ -495,7 +515,8 @@ class _Plan(NamedTuple):
     for one tick (``calls[False]``, ``calls[True]``: ``_tick.compiled_call``, made on first
     use), and what ``step`` reads of it: calls of up to ``rows`` ticks, built at these
     array ``versions``; the chip's output arrays; the truth at the samples; the in-loop
-    estimators (label, estimator, loop arrays) and those after it."""
+    estimators (label, estimator, loop arrays) and those after it; the outputs made of its
+    arrays for each number of samples k (``reuse_outputs``)."""
 
     record: TickPlan
     record_type: Any
@@ -506,6 +527,7 @@ class _Plan(NamedTuple):
     truth: TruthAtSamples
     in_loop: tuple
     after: tuple
+    views: dict
 
 
 def _empty_samples() -> ImuSamples:
@@ -515,6 +537,10 @@ def _empty_samples() -> ImuSamples:
     for a in arrays:
         a.flags.writeable = False
     return ImuSamples(*arrays[:7], RawSamples(arrays[7], arrays[8]))
+
+
+def _view(a: np.ndarray) -> np.ndarray:
+    return a
 
 
 def _series(name: str, value: Any, n: int | None = None) -> np.ndarray:

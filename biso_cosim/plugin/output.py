@@ -130,13 +130,18 @@ class PluginOutput:
         est = self.estimates[label if label is not None else next(iter(self.estimates))]
         return self.frames.attitude_from_package(est.estimate.q_wb[-1])
 
+    def copy(self) -> "PluginOutput":
+        """This output in arrays of its own (to keep it past the next call of a plug-in with
+        ``reuse_outputs``)."""
+        return PluginOutput.concatenate([self])
+
     @staticmethod
     def concatenate(parts: "list[PluginOutput]") -> "PluginOutput":
-        """One output from consecutive ones (a whole run from its calls)."""
+        """One output from consecutive ones (a whole run from its calls), in arrays of its own."""
         if not parts:
             raise ValueError("parts must hold at least one PluginOutput")
         first = parts[0]
-        q_true = np.concatenate([p.q_true_wb for p in parts]) if len(parts) > 1 else first.q_true_wb
+        q_true = np.concatenate([p.q_true_wb for p in parts])
         estimates: dict[str, EstimateOutput] = {}
         for label, est in first.estimates.items():
             chunks = [p.estimates[label].estimate for p in parts]

@@ -181,15 +181,16 @@ class RacecarBridge:
         for i in range(n):
             row = self.step_host()
             rows.append(row)
+            block.append(row)
+            if len(block) < self.block_ticks and i < n - 1:
+                continue
             if self.block_ticks == 1:
                 t, q, p, v, _, w_b, a = row
-                outputs.append(self.plugin.step(t, q, w_b, accel_w=a, p_w=p, v_w=v))
-                continue
-            block.append(row)
-            if len(block) == self.block_ticks or i == n - 1:
+            else:
                 t, q, p, v, _, w_b, a = (np.array([r[j] for r in block]) for j in range(7))
-                outputs.append(self.plugin.step(t, q, w_b, accel_w=a, p_w=p, v_w=v))
-                block = []
+            out = self.plugin.step(t, q, w_b, accel_w=a, p_w=p, v_w=v)
+            outputs.append(out.copy() if self.plugin.reuse_outputs else out)  # (the drive keeps every output)
+            block = []
         t, q, p, v, w, w_b, a = (np.array([r[i] for r in rows]) for i in range(7))
         return RacecarRun(t, q, p, v, w, w_b, a, PluginOutput.concatenate(outputs))
 

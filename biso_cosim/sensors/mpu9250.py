@@ -357,7 +357,7 @@ class MPU9250:
             increments, subintervals = self._check_increments(increments, subintervals)
         else:
             increments = subintervals = 0
-        out = self._outputs(n, increments, subintervals)
+        out = self.output_arrays(n, increments, subintervals)
         bad, k = _kernel(self._cp, self._ch, self._cs, self._chs, w, f, m, temp, temp_default, increments,
                          subintervals, *out)
         if bad >= 0:
@@ -376,19 +376,20 @@ class MPU9250:
         and the default die temperature."""
         return self._cp, self._ch, self._cs, self._chs, self._temp_default
 
-    def _outputs(self, n: int, increments: int, subintervals: int) -> tuple[np.ndarray, ...]:
-        """The kernel's output arrays for n input rows (``K.output_bound`` rows of each)."""
+    def output_arrays(self, n: int, increments: int = 0, subintervals: int = 0) -> tuple[np.ndarray, ...]:
+        """Output arrays of the chip's kernel for up to n input rows (``K.output_bound`` rows
+        each): (floats, words, status_bytes, flags), for callers that run the kernel
+        (``loop_arrays``) inside their own compiled call; ``sample_views`` reads them."""
         bound = K.output_bound(n, self._ticks_per_input, self._out_div)
         return (np.empty(bound * (11 + 6 * (increments + subintervals))), np.empty((bound, 10), dtype=np.int16),
                 np.empty((bound, 3), dtype=np.uint8), np.empty(bound, dtype=np.int32))
 
     @staticmethod
-    def _samples(status: int, k: int, out: tuple[np.ndarray, ...], increments: int, subintervals: int) -> ImuSamples:
-        """The samples in the kernel's outputs ``out`` (status -1: k rows written)."""
+    def sample_views(out: tuple[np.ndarray, ...], k: int, increments: int = 0, subintervals: int = 0) -> ImuSamples:
+        """The first k samples the kernel wrote into ``out`` (``output_arrays``), as
+        ``ImuSamples`` of views of those arrays (copy them to keep them past the next run)."""
         floats, words, status_bytes, flags = out
         B = flags.shape[0]
-        if status == -2:
-            raise RuntimeError(f"MPU9250: {k} outputs due but room for {B} (output_bound is wrong)")
         inc = None
         if increments or subintervals:
             o, r, m3 = 11 * B, 3 * B * increments, 3 * B * subintervals
@@ -411,6 +412,15 @@ class MPU9250:
             RawSamples(words[:k], status_bytes[:, 1:]),
             *(inc or ()),
         )
+
+    @staticmethod
+    def _samples(status: int, k: int, out: tuple[np.ndarray, ...], increments: int, subintervals: int) -> ImuSamples:
+        """``sample_views`` after the kernel's status (-1: k rows written; -2: too few rows)."""
+        if status == -2:
+            raise RuntimeError(f"MPU9250: {k} outputs due but room for {out[3].shape[0]} (output_bound is wrong)")
+        return MPU9250.sample_views(out, k, increments, subintervals)
+
+    _outputs = output_arrays  # (the name biso_cosim/cosim.py still calls)
 
     def _check_increments(self, increments: Any, subintervals: Any) -> tuple[int, int]:
         if isinstance(increments, bool) or not isinstance(increments, (int, np.integer)) or not 0 <= increments <= K.MAX_ORDER:
