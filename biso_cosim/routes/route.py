@@ -9,6 +9,12 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     excites = "one line"             # optional: what it excites (turns, grades, bank...)
     closed = true                    # required: the route ends where it starts
     laps = 1                         # optional, closed routes only: drive the loop N times
+    tyres = "coulomb"                # optional: the car's tyre model, "coulomb" (MuJoCo's
+                                     # friction on sphere wheels, the default) or
+                                     # "magic_formula" (slip-based, biso_cosim.vehicle.tyres)
+    surface = "dry"                  # optional, magic_formula tyres only: the road's friction,
+                                     # "dry", "wet", "gravel", "snow", "ice" or a scale in
+                                     # (0, 1.5] of dry asphalt's (vehicle.tyres.SURFACES)
 
     [driving]                        # optional; the defaults are shown
     default_speed_mps = 10.0         # leg speed where a waypoint gives none
@@ -164,6 +170,11 @@ class Route:
     terrain: Terrain = field(default_factory=Terrain)
     gnss_outages: tuple[GnssOutageZone, ...] = ()
     source: str = ""
+    tyres: str = "coulomb"
+    """The tyre model the car drives this route with (``vehicle.tyres.TYRE_MODELS``)."""
+    surface: str | float = "dry"
+    """The road surface (a name of ``vehicle.tyres.SURFACES`` or a friction scale); anything but
+    "dry" needs ``tyres = "magic_formula"``."""
 
     @cached_property
     def path(self) -> Path:
@@ -263,6 +274,8 @@ class Route:
             "reversing": bool((self.direction < 0).any()),
             "terrain_features": len(self.terrain.features),
             "gnss_outages": len(self.gnss_outages),
+            "tyres": self.tyres,
+            "surface": self.surface,
         }
 
 
@@ -270,8 +283,8 @@ class Route:
 # Parsing
 # --------------------------------------------------------------------------------------
 
-_TOP_KEYS = {"format", "name", "description", "excites", "closed", "laps", "driving", "site", "waypoint", "terrain",
-             "gnss_outage"}
+_TOP_KEYS = {"format", "name", "description", "excites", "closed", "laps", "tyres", "surface", "driving", "site",
+             "waypoint", "terrain", "gnss_outage"}
 
 
 def _number(value, where: str, *, minimum: float | None = None, strict: bool = False) -> float:
@@ -328,6 +341,8 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
         raise ValueError(f"{where}: laps must be an integer >= 1, got {laps!r}")
     if laps > 1 and not closed:
         raise ValueError(f"{where}: laps > 1 needs a closed route")
+
+    tyres, surface = _tyres_and_surface(data, where)
 
     positive = lambda v, w: _number(v, w, minimum=0.0, strict=True)  # noqa: E731
     driving = _table(data, "driving", DrivingLimits, where, {
@@ -417,7 +432,7 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
     driving, waypoints = _within_car_limits(driving, waypoints, closed, laps, where)
     route = Route(name=data["name"], description=data["description"], excites=data.get("excites", ""),
                   closed=closed, laps=laps, waypoints=tuple(waypoints), driving=driving, site=site,
-                  terrain=terrain, gnss_outages=tuple(outages), source=source)
+                  terrain=terrain, gnss_outages=tuple(outages), source=source, tyres=tyres, surface=surface)
     route.path  # noqa: B018 -- build now so that geometry errors surface at load time
     _warn_curvature_caps(route, where)
     return route
@@ -527,6 +542,29 @@ def _within_car_limits(driving: DrivingLimits, waypoints: list[Waypoint], closed
                       f"{driving.accel_mps2:g}: it reaches the speed later than the profile says", RouteWarning,
                       stacklevel=3)
     return driving, waypoints
+
+
+def _tyres_and_surface(data: dict, where: str) -> tuple[str, str | float]:
+    """The route's ``tyres`` and ``surface``, checked: one line naming the field and what it
+    may be for a bad value."""
+    from biso_cosim.vehicle.tyres import SURFACES, TYRE_MODELS, surface_friction
+
+    tyres = data.get("tyres", "coulomb")
+    if tyres not in TYRE_MODELS or not isinstance(tyres, str):
+        raise ValueError(f"{where}: tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
+    surface = data.get("surface", "dry")
+    allowed = f"one of {', '.join(repr(s) for s in SURFACES)} or a friction scale in (0, 1.5]"
+    if isinstance(surface, bool) or not isinstance(surface, (str, int, float)):
+        raise ValueError(f"{where}: surface must be {allowed}, got {surface!r}")
+    try:
+        surface_friction(surface)
+    except ValueError:
+        raise ValueError(f"{where}: surface must be {allowed}, got {surface!r}") from None
+    surface = surface if isinstance(surface, str) else float(surface)
+    if tyres == "coulomb" and surface != "dry":
+        raise ValueError(f"{where}: surface = {surface!r} needs tyres = \"magic_formula\" (the coulomb tyres "
+                         "drive on dry asphalt only)")
+    return tyres, surface
 
 
 def _boolean(value, where: str) -> bool:

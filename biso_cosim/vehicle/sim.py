@@ -142,11 +142,16 @@ _NO_ROWS = np.empty((0, Truth.WIDTH))
 
 
 class VehicleSim:
-    """The reference car on ``route``'s terrain, driven by the scripted driver."""
+    """The reference car on ``route``'s terrain, driven by the scripted driver.
+
+    ``tyres`` and ``surface`` (see ``model.build_model``) default to the route's
+    (``Route.tyres``, ``Route.surface``: a route file may name them; "coulomb" and "dry"
+    otherwise); an explicit ``tyres`` with the route's surface only if it is "magic_formula".
+    """
 
     def __init__(self, route: Route, *, physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0,
                  driver_params: DriverParams | None = None, drivetrain: DrivetrainParams = DRIVETRAIN,
-                 tyres: str = "coulomb", tyre_params=None, surface: str | float = "dry"):
+                 tyres: str | None = None, tyre_params=None, surface: str | float | None = None):
         if not physics_rate_hz > 0.0:
             raise ValueError(f"physics_rate_hz must be > 0, got {physics_rate_hz}")
         if not control_rate_hz > 0.0:
@@ -160,8 +165,15 @@ class VehicleSim:
         self.control_rate_hz = float(control_rate_hz)
         self.steps_per_control = int(round(ratio))
         self._history_steps = min(self.steps_per_control, _MAX_HISTORY_STEPS)
-        # tyres: "coulomb" (the default) or "magic_formula" (vehicle.tyres), see build_model
+        # tyres: "coulomb" or "magic_formula" (vehicle.tyres), see build_model; not given, the
+        # route's (``Route.tyres``, "coulomb" unless its file names one), and the route's
+        # surface with the magic_formula tyres
+        if tyres is None:
+            tyres = route.tyres
+        if surface is None:
+            surface = route.surface if tyres == "magic_formula" else "dry"
         self.tyres = tyres
+        self.surface = surface
         self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz,
                                                history_steps=self._history_steps, tyres=tyres,
                                                tyre_params=tyre_params, surface=surface)
