@@ -404,13 +404,11 @@ class ImuPlugin:
     def _output(self, plan: "_Plan", k: int) -> PluginOutput:
         """The compiled call's k samples, truth and in-loop estimates (views of the plan's
         arrays, made once per k, with ``reuse_outputs``; else copies), and the estimators
-        that run after it. An output of no samples holds nothing a later call could write
-        over, so it is made once either way (at 1 kHz ticks and 200 Hz samples, four calls
-        in five latch none)."""
+        that run after it."""
         out = plan.views.get(k)
         if out is None:
             out = self._plan_output(plan, k)
-            if self.reuse_outputs or k == 0:
+            if self.reuse_outputs:
                 plan.views[k] = out
         if not plan.after:
             return out
