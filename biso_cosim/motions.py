@@ -185,6 +185,17 @@ def tumble(duration_s=30.0, fs_hz=200.0, *, seed=0, rate_scale=1.0, field_w=EART
                      {"rate_scale": s})
 
 
+def _swing(amp_rad: float, freq_rad_s: float, phase_rad: float, base_rad: float | None = None):
+    """An Euler angle ``base + amp·sin(ω t + φ)`` and its rate ``amp·ω·cos(ω t + φ)``, the
+    pair ``_euler_chain`` takes for one axis."""
+    rate_amp = amp_rad * freq_rad_s
+    if base_rad is None:
+        return (lambda tt: amp_rad * np.sin(freq_rad_s * tt + phase_rad),
+                lambda tt: rate_amp * np.cos(freq_rad_s * tt + phase_rad))
+    return (lambda tt: base_rad + amp_rad * np.sin(freq_rad_s * tt + phase_rad),
+            lambda tt: rate_amp * np.cos(freq_rad_s * tt + phase_rad))
+
+
 def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, field_w=EARTH_FIELD_W, g=G0):
     """Hand shaking: attitude wobble of 5–10° at 1–3 Hz and translation of ~``accel_g`` g peak."""
     t = _time(duration_s, fs_hz)
@@ -192,11 +203,7 @@ def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, field_w=EARTH_FI
     ph = rng.uniform(0, 2 * np.pi, size=3)
     amp, frq = np.radians([6.0, 8.0, 5.0]), 2 * np.pi * np.array([1.3, 2.1, 2.9])
 
-    def wob(j, base):
-        return (lambda tt: base + amp[j] * np.sin(frq[j] * tt + ph[j]),
-                lambda tt: amp[j] * frq[j] * np.cos(frq[j] * tt + ph[j]))
-
-    q, om = _euler_chain(t, wob(0, 0.8), wob(1, 0.15), wob(2, -0.1))
+    q, om = _euler_chain(t, *(_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.8, 0.15, -0.1))))
     freqs = [2.0, 3.7, 5.9]
     # amplitude per frequency so that each contributes about a third of the peak
     amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in freqs]
@@ -214,9 +221,9 @@ def magnet(duration_s=30.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, closest_m=0.
     t = _time(duration_s, fs_hz)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=3)
-    yaw = (lambda tt: 0.6 * np.sin(0.3 * tt + ph[0]), lambda tt: 0.18 * np.cos(0.3 * tt + ph[0]))
-    pitch = (lambda tt: 0.25 * np.sin(0.5 * tt + ph[1]), lambda tt: 0.125 * np.cos(0.5 * tt + ph[1]))
-    roll = (lambda tt: 0.3 * np.sin(0.7 * tt + ph[2]), lambda tt: 0.21 * np.cos(0.7 * tt + ph[2]))
+    yaw = _swing(0.6, 0.3, ph[0])
+    pitch = _swing(0.25, 0.5, ph[1])
+    roll = _swing(0.3, 0.7, ph[2])
     q, om = _euler_chain(t, yaw, pitch, roll)
     T = t[-1] if t.size > 1 else 1.0
     # distance: 1.5 m far away, a raised-cosine dip to closest_m over the middle third
@@ -242,11 +249,7 @@ def translation(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=2.0, field_w=EA
     ph = rng.uniform(0, 2 * np.pi, size=3)
     amp, frq = np.radians([15.0, 10.0, 12.0]), 2 * np.pi * np.array([0.05, 0.13, 0.19])
 
-    def slow(j, base):
-        return (lambda tt: base + amp[j] * np.sin(frq[j] * tt + ph[j]),
-                lambda tt: amp[j] * frq[j] * np.cos(frq[j] * tt + ph[j]))
-
-    q, om = _euler_chain(t, slow(0, 0.5), slow(1, 0.1), slow(2, -0.15))
+    q, om = _euler_chain(t, *(_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.5, 0.1, -0.15))))
     freqs = [1.1, 1.7, 2.5]
     amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in freqs]
     _, acc = _sines(rng, t, amp_pos, freqs)
@@ -265,9 +268,9 @@ def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distanc
     t = _time(duration_s, fs_hz)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=6)
-    yaw = (lambda tt: 0.6 * np.sin(0.35 * tt + ph[0]), lambda tt: 0.21 * np.cos(0.35 * tt + ph[0]))
-    pitch = (lambda tt: 0.25 * np.sin(0.55 * tt + ph[1]), lambda tt: 0.1375 * np.cos(0.55 * tt + ph[1]))
-    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    yaw = _swing(0.6, 0.35, ph[0])
+    pitch = _swing(0.25, 0.55, ph[1])
+    roll = _swing(0.25, 0.75, ph[2])
     q, om = _euler_chain(t, yaw, pitch, roll)
     w = 2 * np.pi * np.array([0.04, 0.07, 0.11])
     pos = 0.15 * np.sin(w[None, :] * t[:, None] + ph[None, 3:])
@@ -292,9 +295,9 @@ def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_r
     t = _time(duration_s, fs_hz)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=3)
-    yaw = (lambda tt: 0.6 * np.sin(0.3 * tt + ph[0]), lambda tt: 0.18 * np.cos(0.3 * tt + ph[0]))
-    pitch = (lambda tt: 0.25 * np.sin(0.5 * tt + ph[1]), lambda tt: 0.125 * np.cos(0.5 * tt + ph[1]))
-    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    yaw = _swing(0.6, 0.3, ph[0])
+    pitch = _swing(0.25, 0.5, ph[1])
+    roll = _swing(0.25, 0.75, ph[2])
     T = t[-1] if t.size > 1 else 1.0
     # on/off envelope: raised-cosine ramps of 1 s at T/3 and 2T/3 (its derivatives analytic)
     def env(tt):
@@ -340,9 +343,9 @@ def moving_start(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=0.5, field_w=E
     t = _time(duration_s, fs_hz)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=4)
-    yaw = (lambda tt: 0.6 * np.sin(0.3 * tt + ph[0]), lambda tt: 0.18 * np.cos(0.3 * tt + ph[0]))
-    pitch = (lambda tt: 0.25 * np.sin(0.5 * tt + ph[1]), lambda tt: 0.125 * np.cos(0.5 * tt + ph[1]))
-    roll = (lambda tt: 0.25 * np.sin(0.75 * tt + ph[2]), lambda tt: 0.1875 * np.cos(0.75 * tt + ph[2]))
+    yaw = _swing(0.6, 0.3, ph[0])
+    pitch = _swing(0.25, 0.5, ph[1])
+    roll = _swing(0.25, 0.75, ph[2])
     q, om = _euler_chain(t, yaw, pitch, roll)
     a0 = accel_g * g
     sway = np.array([math.cos(ph[3]), math.sin(ph[3]), 0.0])

@@ -61,7 +61,11 @@ def test_the_compiled_call_gives_the_general_paths_numbers_bit_for_bit(frames):
     ticked = ImuPlugin(**kwargs)
     assert ticked.in_loop_estimators == tuple(ESTIMATORS)
     parts = [ticked.step(**{k: v[i] for k, v in truth.items()}) for i in range(n)]
-    _same(reference, PluginOutput.concatenate(parts))
+    _same(reference, PluginOutput.concatenate(parts))  # kept outputs: no later call wrote over them
+    latched = [p for p in parts if len(p)]
+    assert not any(np.shares_memory(a.samples.gyro_b, b.samples.gyro_b) for a, b in zip(latched, latched[1:]))
+    empty = [p for p in parts if not len(p)]  # nothing to write over: one object
+    assert len(empty) > len(latched) and all(p is empty[0] for p in empty)
 
     blocks = ImuPlugin(**kwargs)
     cuts = np.unique(np.concatenate(([0, n], np.random.default_rng(0).integers(1, n, 40))))

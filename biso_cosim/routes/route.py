@@ -450,15 +450,14 @@ def _warn_curvature_caps(route: "Route", where: str) -> None:
     path = route.path
     n = len(route.waypoints)
     limit = curvature_speed_limit(path, route.driving.max_lateral_accel_mps2, route._cusp_indices)
+    # the fastest each leg may be driven anywhere on it (-inf: no path point on the leg)
+    leg_fastest = np.full(n, -np.inf)
+    np.maximum.at(leg_fastest, path.leg % n, limit)
     capped = []
     for k, wp in enumerate(route.waypoints):
-        if wp.speed_mps is None:
-            continue
-        on_leg = (path.leg % n) == k
-        if on_leg.any():
-            allowed = float(limit[on_leg].max())  # the fastest the leg may be driven anywhere
-            if allowed < wp.speed_mps * (1.0 - 1e-9):
-                capped.append((k, wp.speed_mps, allowed))
+        allowed = float(leg_fastest[k])
+        if wp.speed_mps is not None and np.isfinite(allowed) and allowed < wp.speed_mps * (1.0 - 1e-9):
+            capped.append((k, wp.speed_mps, allowed))
     if capped:
         k, speed, allowed = capped[0]
         more = f" (and {len(capped) - 1} more waypoint(s))" if len(capped) > 1 else ""

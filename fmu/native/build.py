@@ -60,7 +60,7 @@ def fmu_sources(name: str, fmi_version: int, folder: Path, extra_profiles: Seque
     copies += [*estimator_headers(), *estimator_sources()]
     copies += [_FMI_DIR / f for f in ("fmu_vars.h", "fmu_core.h", "fmu_core.c", "fmu_estimate.h", "fmu_estimate.c",
                                       model_h, model_c, f"fmi{fmi_version}.c",
-                                      *(["fmi3_unsupported.h"] if fmi_version == 3 else []))]
+                                      f"fmi{fmi_version}_unsupported.h")]
     names = []
     for src in copies:
         if src.name in names:

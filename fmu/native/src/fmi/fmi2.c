@@ -30,6 +30,13 @@ static void log2(biso_instance *inst, int status, const char *category, const ch
         s->callbacks.logger(s->callbacks.componentEnvironment, inst->name, (fmi2Status)status, category, format);
 }
 
+static fmi2Status unsupported(fmi2Component c, const char *function, const char *why) {
+    if (!c) return fmi2Error;
+    INST->function = function;
+    biso_log(INST, BISO_ERROR, "%s: not supported by %s (%s)", function, BISO_FMU_NAME, why);
+    return fmi2Error;
+}
+
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
@@ -240,43 +247,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     return fmi2OK;
 }
 
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    CHECK_INSTANCE("fmi2GetDirectionalDerivative");
-    biso_log(INST, BISO_ERROR, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
-    return fmi2Error;
-}
-
 /* ---- co-simulation -------------------------------------------------------------------- */
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    CHECK_INSTANCE("fmi2SetRealInputDerivatives");
-    biso_log(INST, BISO_ERROR, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    CHECK_INSTANCE("fmi2GetRealOutputDerivatives");
-    biso_log(INST, BISO_ERROR, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
-    return fmi2Error;
-}
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
@@ -285,33 +256,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     return (fmi2Status)biso_do_step(INST, currentCommunicationPoint, communicationStepSize);
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) {
-    CHECK_INSTANCE("fmi2CancelStep");
-    biso_log(INST, BISO_ERROR, "fmi2CancelStep: steps are never asynchronous here");
-    return fmi2Error;
-}
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE("fmi2GetStatus");
-    biso_log(INST, BISO_ERROR, "fmi2GetStatus: no asynchronous status (steps are synchronous)");
-    return fmi2Discard;
-}
-
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     CHECK_INSTANCE("fmi2GetRealStatus");
     if (s == fmi2LastSuccessfulTime && value) {
         *value = INST->core.time;
         return fmi2OK;
     }
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE("fmi2GetIntegerStatus");
     return fmi2Discard;
 }
 
@@ -324,9 +274,4 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     return fmi2Discard;
 }
 
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE("fmi2GetStringStatus");
-    return fmi2Discard;
-}
+#include "fmi2_unsupported.h"

@@ -1,5 +1,6 @@
 /* The FMI 3.0 functions that our co-simulation FMUs do not provide (model exchange, event
-   mode, clocks, configuration mode, binaries, derivatives): each logs why and returns fmi3Error.
+   mode, clocks, configuration mode, binaries, derivatives, dependencies, and the variable
+   types they have none of): each logs why and returns fmi3Error.
    Included once by each FMI 3.0 shell (src/fmi/fmi3.c, src/python/python_fmi3.c) after it defines
    unsupported(instance, function, why), CHECK_INSTANCE and INST. */
 #ifndef BISO_FMI3_UNSUPPORTED_H
@@ -158,6 +159,92 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueRefere
                                     size_t nValues) {
     (void)valueReferences; (void)nValueReferences; (void)orders; (void)values; (void)nValues;
     return unsupported(instance, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder=0");
+}
+
+/* types these FMUs have no variable of: a call with value references is an error */
+#define NO_VARIABLES(Name, ctype)                                                                          \
+    fmi3Status fmi3Get##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, ctype values[], size_t nValues) {                    \
+        (void)valueReferences;                                                                             \
+        (void)values;                                                                                      \
+        (void)nValues;                                                                                     \
+        if (nValueReferences == 0) return instance ? fmi3OK : fmi3Error;                                   \
+        return unsupported(instance, "fmi3Get" #Name, "no " #Name " variables");                           \
+    }                                                                                                      \
+    fmi3Status fmi3Set##Name(fmi3Instance instance, const fmi3ValueReference valueReferences[],               \
+                             size_t nValueReferences, const ctype values[], size_t nValues) {              \
+        (void)valueReferences;                                                                             \
+        (void)values;                                                                                      \
+        (void)nValues;                                                                                     \
+        if (nValueReferences == 0) return instance ? fmi3OK : fmi3Error;                                   \
+        return unsupported(instance, "fmi3Set" #Name, "no " #Name " variables");                           \
+    }
+
+NO_VARIABLES(Float32, fmi3Float32)
+NO_VARIABLES(Int8, fmi3Int8)
+NO_VARIABLES(UInt8, fmi3UInt8)
+NO_VARIABLES(Int16, fmi3Int16)
+NO_VARIABLES(UInt16, fmi3UInt16)
+NO_VARIABLES(UInt32, fmi3UInt32)
+NO_VARIABLES(Int64, fmi3Int64)
+NO_VARIABLES(UInt64, fmi3UInt64)
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    if (!instance) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    return unsupported(instance, "fmi3GetBinary", "no Binary variables");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    if (!instance) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    return unsupported(instance, "fmi3SetBinary", "no Binary variables");
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)values;
+    return unsupported(instance, "fmi3GetClock", "no clocks");
+}
+
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)values;
+    return unsupported(instance, "fmi3SetClock", "no clocks");
+}
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    (void)valueReference;
+    (void)nDependencies;
+    return unsupported(instance, "fmi3GetNumberOfVariableDependencies", "dependencies are not declared");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[],
+                                       fmi3DependencyKind dependencyKinds[], size_t nDependencies) {
+    (void)dependent;
+    (void)elementIndicesOfDependent;
+    (void)independents;
+    (void)elementIndicesOfIndependents;
+    (void)dependencyKinds;
+    (void)nDependencies;
+    return unsupported(instance, "fmi3GetVariableDependencies", "dependencies are not declared");
 }
 
 #endif /* BISO_FMI3_UNSUPPORTED_H */

@@ -40,6 +40,14 @@ static fmi2Status refuse(fmi2Component c, const char *message) {
     return fmi2Error;
 }
 
+static fmi2Status unsupported(fmi2Component c, const char *function, const char *why) {
+    char text[512];
+    if (!c) return fmi2Error;
+    snprintf(text, sizeof text, "%s: not supported by %s (%s)", function, BP_MODEL_IDENTIFIER, why);
+    bp_message(INST, BP_ERROR, text);
+    return fmi2Error;
+}
+
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
@@ -226,37 +234,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
     return fmi2OK;
 }
 
-fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
-                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
-                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    return refuse(c, "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=false)");
-}
-
 /* ---- co-simulation -------------------------------------------------------------------- */
-
-fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                       const fmi2Integer order[], const fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return refuse(c, "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=false)");
-}
-
-fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                                        const fmi2Integer order[], fmi2Real value[]) {
-    (void)vr;
-    (void)nvr;
-    (void)order;
-    (void)value;
-    return refuse(c, "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=0)");
-}
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
@@ -266,29 +244,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
                              (unsigned long long)(uintptr_t)&INST->time));
 }
 
-fmi2Status fmi2CancelStep(fmi2Component c) { return refuse(c, "fmi2CancelStep: steps are never asynchronous here"); }
-
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE;
-    bp_message(INST, BP_ERROR, "fmi2GetStatus: no asynchronous status (steps are synchronous)");
-    return fmi2Discard;
-}
-
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     CHECK_INSTANCE;
     if (s == fmi2LastSuccessfulTime && value) {
         *value = INST->time;
         return fmi2OK;
     }
-    return fmi2Discard;
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE;
     return fmi2Discard;
 }
 
@@ -301,9 +262,4 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
     return fmi2Discard;
 }
 
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    (void)s;
-    (void)value;
-    CHECK_INSTANCE;
-    return fmi2Discard;
-}
+#include "fmi2_unsupported.h"
