@@ -251,16 +251,23 @@ def _traction_factor(c, slip):
 
 
 @jit
-def _wheel_torque(c, drive, omega_rear, omega_front):
+def _wheel_torque(c, drive, omega_rl, omega_rr, omega_fl, omega_fr):
     """(torque on the rear differential, N·m, signed like ``drive``; gear) for the drive
-    command ``drive`` in [-1, 1] at the mean rear and front wheel speeds (rad/s)."""
+    command ``drive`` in [-1, 1] at the four wheels' speeds (rad/s): the engine turns with
+    the rear wheels' mean (the differential's crown wheel); the traction control cuts by the
+    larger drive slip of the two rear wheels, each against the undriven front wheel of its
+    side (in the direction of drive; in a bend each rear wheel runs on a smaller radius than
+    the front wheel ahead of it, so cornering alone never reads as slip), so that one wheel
+    spinning up (the unloaded inner wheel in a bend, through the open differential) is
+    caught, not averaged away."""
     if drive == 0.0:
         return 0.0, 0
     sign = 1.0 if drive > 0.0 else -1.0
-    rear, front = sign * omega_rear, sign * omega_front  # positive in the direction of drive
-    available, gear = _available_torque(c, drive < 0.0, rear)
+    rl, rr, fl, fr = sign * omega_rl, sign * omega_rr, sign * omega_fl, sign * omega_fr  # positive in the direction of drive
+    available, gear = _available_torque(c, drive < 0.0, 0.5 * (rl + rr))
     torque = min(abs(drive) * c[C_PEAK], available, c[C_TRACTION])
-    slip = (rear - front) / max(abs(front), c[C_SLIP_FLOOR])
+    floor = c[C_SLIP_FLOOR]
+    slip = max((rl - fl) / max(abs(fl), floor), (rr - fr) / max(abs(fr), floor))
     return sign * torque * _traction_factor(c, slip), gear
 
 
@@ -277,8 +284,7 @@ def _drivetrain_controls(c, drive, wheel_rates):
     """(drive torque, N·m; resistance, N) for the drive command from the wheel spin rates
     ``wheel_rates`` (fl, fr, rl, rr, rad/s)."""
     front = 0.5 * (wheel_rates[0] + wheel_rates[1])
-    rear = 0.5 * (wheel_rates[2] + wheel_rates[3])
-    torque, _ = _wheel_torque(c, drive, rear, front)
+    torque, _ = _wheel_torque(c, drive, wheel_rates[2], wheel_rates[3], wheel_rates[0], wheel_rates[1])
     return torque, _resistance_n(c, front)
 
 
@@ -294,7 +300,8 @@ def wheel_torque(drive: float, omega_rear_rad_s: float, omega_front_rad_s: float
         raise ValueError(f"drive must be in [-1, 1], got {drive!r}")
     c = drivetrain_coefficients(params, mass_kg=1.0, wheel_radius_m=wheel_radius_m)
     c[C_TRACTION] = math.inf
-    torque, gear = _wheel_torque(c, float(drive), float(omega_rear_rad_s), float(omega_front_rad_s))
+    rear, front = float(omega_rear_rad_s), float(omega_front_rad_s)
+    torque, gear = _wheel_torque(c, float(drive), rear, rear, front, front)
     return float(torque), int(gear)
 
 

@@ -40,7 +40,8 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: i
     ``"magic_formula"`` (slip-based tyre forces of ``vehicle.tyres``, a C engine plugin, with
     ``tyre_params``, default ``tyres.TYRES``, on a road of friction ``surface``: a name of
     ``tyres.SURFACES`` or a scale; only with the magic_formula tyres; and ``chassis_params``,
-    default ``tyres.CHASSIS``: the brakes' torque and balance, the ABS, the compliance steer).
+    default ``tyres.CHASSIS``: the brakes' torque and balance, the ABS, the compliance steer;
+    the terrain's surface patches, ``Terrain.surfaces``, set the friction where they lie).
 
     Returns the model and the sampled patches. The magnetic field of the model stays zero:
     the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`. With
@@ -55,13 +56,15 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: i
         raise ValueError(f"tyres must be 'coulomb' or 'magic_formula', got {tyres!r}")
     if tyres == "coulomb" and (tyre_params is not None or chassis_params is not None or surface != "dry"):
         raise ValueError("tyre_params, chassis_params and surface apply to tyres='magic_formula' only")
+    if tyres == "coulomb" and terrain.surfaces:
+        raise ValueError("the terrain's surface patches apply to tyres='magic_formula' only")
     spec = car_spec()
     ground_friction = _GROUND_FRICTION
     if tyres == "magic_formula":
         from biso_cosim.vehicle.tyres import add_tyre_plugin, surface_friction
 
         ground_friction = [surface_friction(surface), *_GROUND_FRICTION[1:]]
-        add_tyre_plugin(spec, tyre_params, chassis_params)
+        add_tyre_plugin(spec, tyre_params, chassis_params, surfaces=terrain.surfaces)
     spec.option.timestep = timestep_s
     for sensor in spec.sensors:
         sensor.nsample = history_steps

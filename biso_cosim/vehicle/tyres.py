@@ -189,7 +189,8 @@ class ChassisParams:
                                               "L = 2.64 m; Wong, Theory of Ground Vehicles, §3.5): the front "
                                               "wheels lock first up to 0.76 g, the ABS handles beyond")
     abs_slip_target: float = param(0.12, symbol="κ_ABS", unit="-",
-                                   doc="ABS: braking slip each wheel's modulator holds",
+                                   doc="ABS: braking slip each wheel's modulator holds on dry asphalt (times "
+                                       "the surface's λ_μ elsewhere, as the tyre's peak slip moves)",
                                    source="just below the tyres' peak of F_x (κ = 0.13-0.16 at 5000-2300 N: "
                                           "the Magic Formula of TyreParams), on its stable side")
     abs_gain_per_s: float = param(40.0, symbol="k_ABS", unit="1/s",
@@ -353,10 +354,12 @@ def magic_formula(fz_n: float, slip_ratio: float, lateral_slip: float, *, params
     return fx.value, fy.value
 
 
-STATE_STRIDE = 16
+STATE_STRIDE = 17
 """Numbers of the plugin state per wheel (tyres.c: slip ratio, lateral slip, load, F_x, F_y,
-in contact, the ABS's release of the brake torque, heading (3), left (3), contact point (3))."""
-STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact", "abs_release")
+in contact, the ABS's release of the brake torque, the friction scale under the tyre,
+heading (3), left (3), contact point (3))."""
+STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact", "abs_release",
+                 "friction_scale")
 
 
 def tyre_states(model, data) -> dict[str, np.ndarray]:
@@ -378,12 +381,14 @@ BRAKES = ("brake_fl", "brake_fr", "brake_rl", "brake_rr")
 STEER = "steer"
 
 
-def add_tyre_plugin(spec, params: TyreParams | None = None, chassis: ChassisParams | None = None) -> None:
+def add_tyre_plugin(spec, params: TyreParams | None = None, chassis: ChassisParams | None = None, *,
+                    surfaces: tuple = ()) -> None:
     """Turn the car of ``spec`` (``model.car_spec()``) to the Magic Formula tyres: its tyre
     geoms without MuJoCo's friction (condim 1: the contact carries the normal load only), its
     brakes to the torque and balance of ``chassis`` (default ``CHASSIS``), and an instance of
     the plugin with ``params`` (default ``TYRES``) acting on them (with the ABS and the
-    compliance steer of ``chassis``)."""
+    compliance steer of ``chassis``, and the friction of the surface patches ``surfaces``,
+    ``terrain.SurfacePatch`` records)."""
     params = TYRES if params is None else params
     chassis = CHASSIS if chassis is None else chassis
     if not isinstance(params, TyreParams):
@@ -395,7 +400,9 @@ def add_tyre_plugin(spec, params: TyreParams | None = None, chassis: ChassisPara
     _set_brakes(spec, chassis)
     spec.activate_plugin(PLUGIN_NAME)  # what <extension><plugin plugin=...> does in MJCF
     instance = spec.add_plugin(name=INSTANCE_NAME, plugin_name=PLUGIN_NAME)
-    instance.config = {**config, "wheels": " ".join(WHEEL_GEOMS), "brakes": " ".join(BRAKES), "steer": STEER}
+    numbers = [number for patch in surfaces for number in patch.plugin_numbers()]
+    instance.config = {**config, "wheels": " ".join(WHEEL_GEOMS), "brakes": " ".join(BRAKES), "steer": STEER,
+                       "surfaces": " ".join(repr(float(v)) for v in numbers)}
 
 
 def _set_brakes(spec, chassis: ChassisParams) -> None:

@@ -7,7 +7,8 @@
  *   "Tyre and Vehicle Dynamics" (3rd ed., 2012, section 4.3: pure slip with load sensitivity,
  *   combined slip by the weighting functions G_xa, G_yk), without camber, without the
  *   asymmetric shifts (the curve is odd in each slip), scaled by the surface's friction
- *   lambda_mu (friction[0] of the ground geom the tyre touches; 1 = dry asphalt).
+ *   lambda_mu (friction[0] of the ground geom the tyre touches, 1 = dry asphalt, or the
+ *   friction scale of the last surface patch, a rectangle of the road, holding the contact).
  * - The slips are first-order relaxation states (Pacejka 2012, section 7.2.2, "transient
  *   slip"): sigma_x dk/dt + |V_x| k = -V_sx and sigma_y db/dt + |V_x| b = V_sy, with V_x the
  *   wheel centre's velocity along the tyre's heading, V_sx, V_sy the slip velocity of the
@@ -23,17 +24,20 @@
  *   and stores the normal loads. One mj_step(m, d, n) call advances n steps, no Python.
  * - ABS (here, at the physics rate: a modulator's valves act within milliseconds, faster
  *   than the 20 ms control period, and a locking wheel's slip grows in tens of ms): each
- *   wheel's release R of its brake torque follows dR/dt = k_abs (s - s_abs) within [0, 1]
+ *   wheel's release R of its brake torque follows dR/dt = k_abs (s - s_abs lambda_mu) in [0, 1]
  *   (integral control of the braking slip s = V_sx sign(V_x)/|V_x|, the true slip: an ideal
  *   wheel-speed and reference-speed estimate), none while the brake command is 0 or below
- *   the cut-out speed; compute subtracts R times the brake damper's torque of the step.
+ *   the cut-out speed; compute subtracts R times the brake damper's torque of the step. The
+ *   target scales with the surface's lambda_mu as the tyre's peak slip does (lambda_mu scales
+ *   the peak force, not the slip stiffness), as a real ABS finds the peak on any surface.
  * - Compliance steer: the front tyres' lateral force F_yf turns the road wheels against it
  *   by c_delta F_yf: a torque -c_delta kp F_yf on the steering hinge, kp its servo's stiffness.
  * - A non-finite force stops the run: mju_error naming the time and the wheel.
  *
  * Plugin state per wheel (STRIDE numbers, tyres.py reads it): slip ratio, lateral slip
  * tan(alpha), normal load (N), longitudinal and lateral force (N, along the tyre's heading and
- * its left), in contact (0/1), the ABS's release of the brake torque (0-1), then the contact geometry of the step (heading, left, point).
+ * its left), in contact (0/1), the ABS's release of the brake torque (0-1), the surface's
+ * friction scale under the tyre, then the contact geometry of the step (heading, left, point).
  */
 
 #include <math.h>
@@ -59,11 +63,15 @@
 #define ENUM(name) P_##name,
 enum { PARAMS(ENUM) NPARAM };
 #define NAME(name) #name,
-static const char* const param_names[] = {PARAMS(NAME) "wheels", "brakes", "steer"};
-#define NCONFIG (NPARAM + 3)
+static const char* const param_names[] = {PARAMS(NAME) "wheels", "brakes", "steer", "surfaces"};
+#define NCONFIG (NPARAM + 4)
+/* surface patches: rectangles of the road with their own friction scale, each given by
+   7 numbers (centre x, y; unit vector along u_x, u_y; half length; half width; lambda_mu) */
+#define MAX_SURFACES 64
+#define SURFACE_STRIDE 7
 
 /* state layout per wheel */
-enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_RELEASE, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
+enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_RELEASE, S_LAMBDA, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
        STRIDE = S_POINT + 3 };
 
 typedef struct {
@@ -74,6 +82,8 @@ typedef struct {
   int spin_dof[NWHEEL];  /* the dof of its spin joint (the brake's joint) */
   int steer_dof;         /* the steering hinge's dof (compliance steer) */
   double steer_kp;       /* the steering servo's stiffness, N m/rad */
+  int nsurface;
+  double surface[MAX_SURFACES * SURFACE_STRIDE];
 } Tyres;
 
 BISO_EXPORT int biso_tyres_param_count(void) { return NPARAM; }
@@ -233,6 +243,29 @@ static int init(const mjModel* m, mjData* d, int instance) {
   }
   t->steer_dof = m->jnt_dofadr[m->actuator_trnid[2 * sa]];
   t->steer_kp = m->actuator_gainprm[mjNGAIN * sa];
+  /* the surface patches (none: every ground geom's own friction) */
+  const char* surfaces = mj_getPluginConfig(m, instance, "surfaces");
+  const char* c = surfaces ? surfaces : "";
+  int count = 0;
+  for (;;) {
+    char* end = NULL;
+    double v = strtod(c, &end);
+    if (end == c) break;
+    if (count >= MAX_SURFACES * SURFACE_STRIDE || !isfinite(v)) {
+      free(t);
+      mju_error("biso.tyres: surfaces must be at most %d patches of %d finite numbers", MAX_SURFACES, SURFACE_STRIDE);
+      return -1;
+    }
+    t->surface[count++] = v;
+    c = end;
+  }
+  while (*c == ' ') c++;
+  if (*c || count % SURFACE_STRIDE) {
+    free(t);
+    mju_error("biso.tyres: surfaces must be groups of %d numbers, got '%s'", SURFACE_STRIDE, surfaces);
+    return -1;
+  }
+  t->nsurface = count / SURFACE_STRIDE;
   d->plugin_data[instance] = (uintptr_t)t;
   return 0;
 }
@@ -256,6 +289,17 @@ static void reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int
   (void)plugin_data;
   (void)instance;
   memset(plugin_state, 0, sizeof(mjtNum) * NWHEEL * STRIDE);
+}
+
+/* the friction scale at the contact point: the last surface patch that holds it, else the
+   ground geom's own (friction[0]) */
+static double surface_friction(const Tyres* t, const double* pos, double ground) {
+  for (int k = t->nsurface - 1; k >= 0; k--) {
+    const double* q = t->surface + k * SURFACE_STRIDE;
+    const double dx = pos[0] - q[0], dy = pos[1] - q[1];
+    if (fabs(dx * q[2] + dy * q[3]) <= q[4] && fabs(-dx * q[3] + dy * q[2]) <= q[5]) return q[6];
+  }
+  return ground;
 }
 
 /* the brake actuator a's command, within its control range */
@@ -302,7 +346,8 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
       s[S_POINT + k] = con->pos[k];
     }
     s[S_CONTACT] = 1.0;
-    const double lam = m->geom_friction[3 * ground];
+    const double lam = surface_friction(t, con->pos, m->geom_friction[3 * ground]);
+    s[S_LAMBDA] = lam;
     double fx, fy;
     biso_tyres_magic_formula(p, s[S_FZ], s[S_KAPPA], s[S_SLIPY], lam, &fx, &fy);
     /* low-speed damping on the slip velocity, faded in below v_low */
@@ -386,7 +431,8 @@ static void advance(const mjModel* m, mjData* d, int instance) {
        beyond the target and shrinks below it; none while not braking or below the cut-out speed */
     if (brake_command(m, d, t->brake[w]) > 0.0 && speed > p[P_abs_speed_min_mps]) {
       const double slip = (v[0] > 0.0 ? v[1] : -v[1]) / speed;
-      const double release = s[S_RELEASE] + dt * p[P_abs_gain_per_s] * (slip - p[P_abs_slip_target]);
+      const double target = p[P_abs_slip_target] * s[S_LAMBDA];
+      const double release = s[S_RELEASE] + dt * p[P_abs_gain_per_s] * (slip - target);
       s[S_RELEASE] = fmin(fmax(release, 0.0), 1.0);
     } else {
       s[S_RELEASE] = 0.0;
