@@ -153,14 +153,17 @@ def steady_circle(speed_mps: float, *, radius_m: float = 40.0, tyres: str = "mag
         steady=steady)
 
 
-def understeer_fit(points: list[SteadyPoint], wheelbase_m: float, linear_limit_g: float = 0.4) -> dict[str, float]:
+def understeer_fit(points: list[SteadyPoint], wheelbase_m: float, linear_limit_g: float = 0.4, *,
+                   road_wheel: bool = False) -> dict[str, float]:
     """ISO 4138: slopes of δ − L/R and of β against a_y/g (least squares over the steady
-    points with a_y ≤ ``linear_limit_g``), in °/g."""
+    points with a_y ≤ ``linear_limit_g``), in °/g; δ the steering command (the steering-wheel
+    angle over the ratio, ISO 4138's), or with ``road_wheel`` the road wheels' angle (the
+    tyres' share alone, without the compliance steer)."""
     use = [p for p in points if p.steady and p.lateral_accel_g <= linear_limit_g]
     if len(use) < 2:
         raise ValueError(f"need two steady points below {linear_limit_g} g, got {len(use)}")
     ay = np.array([p.lateral_accel_g for p in use])
-    excess = np.degrees([p.steer_rad - wheelbase_m / p.radius_m for p in use])
+    excess = np.degrees([(p.road_wheel_rad if road_wheel else p.steer_rad) - wheelbase_m / p.radius_m for p in use])
     beta = np.array([p.sideslip_cg_deg for p in use])
     return {"understeer_gradient_deg_per_g": float(np.polyfit(ay, excess, 1)[0]),
             "sideslip_gradient_deg_per_g": float(np.polyfit(ay, beta, 1)[0]),
@@ -243,7 +246,9 @@ def step_steer(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: float = 4.0
     """ISO 7401 step steer (``step_steer_series``) and its figures."""
     run = step_steer_series(speed_mps=speed_mps, lateral_accel_mps2=lateral_accel_mps2,
                             steer_rate_rad_s=steer_rate_rad_s, tyres=tyres, understeer_deg_per_g=understeer_deg_per_g)
-    t, delta, r, ay, steer = run["t_s"], run["steer_rad"], run["yaw_rate_rad_s"], run["lateral_accel_mps2"], run["step_rad"]
+    # times from the steering command (ISO 7401's steering-wheel angle), not the road wheels'
+    # angle, which the compliance steer turns back as the front force builds
+    t, delta, r, ay, steer = run["t_s"], run["command_rad"], run["yaw_rate_rad_s"], run["lateral_accel_mps2"], run["step_rad"]
     t50 = float(t[np.flatnonzero(delta >= 0.5 * steer)[0]])
     late = t > t[-1] - 1.5
     r_ss, ay_ss = float(np.mean(r[late])), float(np.mean(ay[late]))
@@ -260,7 +265,7 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
                       steer_rate_rad_s: float = 0.4, tyres: str = "magic_formula",
                       understeer_deg_per_g: float | None = None) -> dict[str, np.ndarray]:
     """The time series of an ISO 7401 step steer from the steering command's start (t_s, the
-    road-wheel angle's change steer_rad, yaw rate, lateral acceleration, speed; step_rad the
+    road-wheel angle's change steer_rad, the steering command's command_rad, yaw rate, lateral acceleration, speed; step_rad the
     commanded step) at ``speed_mps`` (80 km/h) to a steady ``lateral_accel_mps2`` (4 m/s²),
     the road-wheel angle ramped at ``steer_rate_rad_s`` (0.4 rad/s: about 350 °/s at the
     steering wheel of a 15:1 steering), the drive held at its value before the step. The step
@@ -288,18 +293,19 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
         sim.apply(DriverCommand(steer_rad=command.steer_rad, drive=drive, brake=0.0))
         sim.step()
     start_steer = float(sim.data.sensordata[sim.index.steering_angle.start])
-    rows, t_start = [], sim.steps_done / sim.physics_rate_hz
+    rows, commands, t_start = [], [], sim.steps_done / sim.physics_rate_hz
     for k in range(int(round(6.0 / dt))):
         angle = start_steer + min(k * dt * steer_rate_rad_s, steer)
         sim.apply(DriverCommand(steer_rad=angle, drive=drive, brake=0.0))
         rows.append(sim.step())
+        commands.append(np.full(len(rows[-1]), angle - start_steer))
     truth = Truth.concatenate(rows)
     t = truth.t_s - t_start
     roll = euler_from_quat(truth.q_wb)[:, 0]
     ay = truth.specific_force_b[:, 1] - G * np.sin(roll)  # at the IMU site, less gravity's share of the roll
     r = truth.omega_b[:, 2]
-    return {"t_s": t, "steer_rad": truth.steer_rad - start_steer, "yaw_rate_rad_s": r, "lateral_accel_mps2": ay,
-            "speed_mps": truth.speed_mps, "step_rad": steer}
+    return {"t_s": t, "steer_rad": truth.steer_rad - start_steer, "command_rad": np.concatenate(commands),
+            "yaw_rate_rad_s": r, "lateral_accel_mps2": ay, "speed_mps": truth.speed_mps, "step_rad": steer}
 
 
 def step_cost_us(*, steps: int = 5000, repeats: int = 7) -> dict[str, float]:
