@@ -45,12 +45,12 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     y_m = 20.0
     radius_m = 60.0
     height_m = 3.0
-    [[terrain.surface]]              # optional, magic_formula tyres only: a stretch of road
-    x0_m = 300.0                     # with its own surface, from (x0_m, y0_m) to (x1_m, y1_m),
-    y0_m = 0.0                       # width_m wide (default 8 m); surface: a name of
-    x1_m = 340.0                     # vehicle.tyres.SURFACES or a friction scale in (0, 1.5];
-    y1_m = 0.0                       # a later patch lies over an earlier one
-    surface = "snow"
+    # [[terrain.surface]]            # optional, tyres = "magic_formula" only: a stretch of road
+    # x0_m = 300.0                   # with its own surface, from (x0_m, y0_m) to (x1_m, y1_m),
+    # y0_m = 0.0                     # width_m wide (default 8 m); surface: a name of
+    # x1_m = 340.0                   # vehicle.tyres.SURFACES or a friction scale in (0, 1.5];
+    # y1_m = 0.0                     # a later patch lies over an earlier one
+    # surface = "snow"
 
     [[gnss_outage]]                  # optional: where a GNSS receiver has no fix (a tunnel,
     x0_m = 200.0                     # the road under a bridge): within half_width_m of the
