@@ -92,3 +92,10 @@ def test_the_handling_braking_figure_is_the_vehicle_sims():
     assert lo <= braking_distance(tyres="magic_formula") <= hi
     assert braking_distance(tyres="coulomb") == pytest.approx(51.43, abs=0.01)
     assert math.isfinite(braking_distance(tyres="magic_formula", start_kmh=50.0))
+
+
+def test_docs_vehicle_shows_the_chassis_parameters_in_force():
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "vehicle.md").read_text()
+    assert ChassisParams.table() in text, "paste ChassisParams.table() into docs/vehicle.md"

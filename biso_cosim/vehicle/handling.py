@@ -6,18 +6,24 @@ range and source), ``handling.json`` and the plots:
 
 * ISO 4138 steady-state circular driving, constant-radius method: the scripted driver holds a
   circle of ``radius_m`` at a series of constant speeds; from the steady part of each run the
-  lateral acceleration a_y = v·r (v forward speed, r yaw rate), the road-wheel steering angle
-  δ (the bicycle-model angle of the steering column), the radius R = v/r and the sideslip
-  angle β at the centre of mass. The understeer gradient is the slope of δ − L/R against
+  lateral acceleration a_y = v·r (v forward speed, r yaw rate), the steering angle δ (the
+  driver's command: the steering-wheel angle over the steering ratio; the road wheels turn
+  less by the compliance steer), the radius R = v/r and the sideslip angle β at the centre
+  of mass. The test driver holds the radius: the scripted driver's pure pursuit plus an
+  integral of the cross-track error (at most 0.04 rad: beyond the front tyres' peak more
+  steering gives less force). The understeer gradient is the slope of δ − L/R against
   a_y/g (ISO 4138, the steering angle less the Ackermann angle) over the linear range
-  a_y ≤ ``linear_limit_g``; the sideslip gradient the slope of β. The limit is progressive
-  when δ grows with a_y up to the highest a_y the car holds, without a jump.
+  a_y ≤ ``linear_limit_g``; the sideslip gradient the slope of β. The limit lateral
+  acceleration is the highest steady a_y; the limit is progressive when δ grows with a_y
+  over the runs that hold the radius and the faster runs keep the a_y with the rear axle's
+  sideslip on its trend (``progressive_limit``).
 * ISO 7401 step steer at 80 km/h to 4 m/s²: the yaw-rate and lateral-acceleration response
   times (from 50 % of the steering step to 90 % of the steady value), the yaw rate's peak
-  time and overshoot. No published class range is checked here (none verified); the linear
+  time and overshoot, from the steering command. No published class range is checked here
+  (none verified); the linear
   bicycle model with the tyres' cornering stiffnesses is the reference (tests/test_tyres.py).
 * braking from 100 km/h on a straight, flat road (the brakes of every wheel at full
-  command, no ABS): the stopping distance.
+  command, the ABS of ``tyres.ChassisParams`` holding each wheel's slip): the stopping distance.
 * the cost of a physics step with the tyre plugin against today's (Coulomb) step.
 
 Published ranges (see ``PUBLISHED``) are of compact cars; each has its source.
@@ -32,7 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PUBLISHED", "SteadyPoint", "steady_circle", "understeer_fit", "braking_distance", "handling_report"]
+__all__ = ["PUBLISHED", "SteadyPoint", "steady_circle", "understeer_fit", "progressive_limit", "limit_lateral_accel",
+           "braking_distance", "handling_report"]
 
 G = 9.80665
 # the speed loop of the steady-circle runs: ramp, proportional (1/s) and integral (1/s²) gains
@@ -43,8 +50,8 @@ _RADIUS_KI = 0.01
 _RADIUS_MAX_RAD = 0.04
 
 PUBLISHED = {
-    "understeer_gradient_deg_per_g": ((2.0, 4.0), "issue 26: a compact hatchback of the class, road-wheel angle "
-                                      "(ISO 4138: δ − L/R against a_y)"),
+    "understeer_gradient_deg_per_g": ((2.0, 4.0), "issue 26: a compact hatchback of the class (ISO 4138: the "
+                                      "steering-wheel angle over the steering ratio, δ − L/R against a_y)"),
     "max_lateral_accel_g": ((0.8, 0.9), "commonly quoted steady-state limit of passenger cars on summer tyres, "
                             "dry asphalt (not checked against a single source)"),
     "stopping_distance_100_m": ((34.0, 40.0), "magazine braking tests (ADAC, auto motor und sport) of compact cars "
@@ -346,6 +353,8 @@ def handling_report(out_dir: str | Path, *, speeds_mps=(6.0, 8.0, 10.0, 12.0, 14
     points = [steady_circle(v, radius_m=radius_m, tyres=tyres) for v in speeds_mps]
     wheelbase = vehicle_parameters()["wheelbase_m"]
     fit = understeer_fit(points, wheelbase)
+    fit["understeer_gradient_road_wheel_deg_per_g"] = understeer_fit(points, wheelbase, road_wheel=True)[
+        "understeer_gradient_deg_per_g"]
     held = [p for p in points if p.steady and abs(p.radius_m - radius_m) < 0.1 * radius_m]
     max_ay = limit_lateral_accel(points)
     progressive = progressive_limit(points, held)
@@ -375,6 +384,8 @@ def report_markdown(result: dict) -> str:
     rows.append(f"| progressive limit (steering grows with a_y; beyond the held radius ≥ 85 % of the a_y kept, "
                 f"rear-axle sideslip within 2° of its trend) | {f['progressive_limit']} | true | "
                 f"{'yes' if f['progressive_limit'] else '**no**'} | ISO 4138 |")
+    rows.append(f"| understeer gradient of the road-wheel angle (the tyres' share, without the compliance steer) | "
+                f"{f['understeer_gradient_road_wheel_deg_per_g']:.2f} °/g | - | - | - |")
     rows.append(f"| sideslip_gradient_deg_per_g (at the centre of mass) | {f['sideslip_gradient_deg_per_g']:.2f} °/g "
                 "| - | - | no verified class range |")
     for key, unit in (("yaw_rate_response_time_s", "s"), ("yaw_rate_peak_time_s", "s"),
@@ -387,10 +398,12 @@ def report_markdown(result: dict) -> str:
              f"({cost['ratio'] - 1.0:+.1%}; best of 7 interleaved timings of 5000 steps, on this machine now).",
              "", f"ISO 4138 constant radius {result['radius_m']:g} m; understeer and sideslip gradients fitted "
              f"over a_y ≤ 0.4 g ({f['points_in_fit']} points).", "",
-             "| target speed m/s | a_y g | steer rad | radius m | β at CG ° | β at rear axle ° | steady |",
-             "|---|---|---|---|---|---|---|"]
+             "| target speed m/s | a_y g | steer (command) rad | road wheels rad | radius m | β at CG ° | "
+             "β at rear axle ° | steady |",
+             "|---|---|---|---|---|---|---|---|"]
     for p in result["points"]:
         rows.append(f"| {p['target_speed_mps']:.0f} | {p['lateral_accel_g']:.3f} | {p['steer_rad']:.4f} | "
+                    f"{p['road_wheel_rad']:.4f} | "
                     f"{p['radius_m']:.1f} | {p['sideslip_cg_deg']:.2f} | {p['sideslip_rear_axle_deg']:.2f} | "
                     f"{p['steady']} |")
     return "\n".join(rows) + "\n"
