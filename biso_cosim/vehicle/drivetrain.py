@@ -25,10 +25,13 @@ where, for each forward gear g of overall ratio G_g = i_g·i_final (reverse gear
   simulation state needs nothing else);
 * traction control: the torque is limited to what the rear axle's traction allows at
   μ_TC with the load transfer of the acceleration (``traction_torque_nm``), and ``τ_TC``
-  cuts it by the drive slip of the rear axle against the undriven front
-  axle, ``s = (ω_rear − ω_front)/max(|ω_front|, ω_min)`` (in the direction of drive), leaves
-  the torque alone up to ``s_target`` and cuts it linearly to zero at ``s_cut``, as an
-  ESP/ASR system does from the wheel-speed sensors;
+  cuts it by the larger drive slip of the two rear wheels, each against the undriven front
+  wheel of its side, ``s = max_side (ω_rear,side − ω_front,side)/max(|ω_front,side|, ω_min)``
+  (in the direction of drive; in a bend a rear wheel runs on a smaller radius than the front
+  wheel of its side, so cornering reads as no slip), leaves the torque alone up to
+  ``s_target`` and cuts it linearly to zero at ``s_cut``, as an ESP/ASR system does from the
+  wheel-speed sensors: one wheel spinning up through the open differential (the unloaded
+  inner wheel in a fast bend) is caught, where the axle's mean slip would let it spin;
 * no engine braking: u = 0 leaves the wheels free (as with the clutch open), the brakes
   slow the car; u < 0 engages reverse, whose torque at a forward-rolling car is that of the
   reverse gear at the engine speed |ω_rear|·G_R, none above the rev limit;
