@@ -15,7 +15,11 @@ compiler flags and MuJoCo's version, and loaded once per process with
 
 :class:`TyreParams` holds each parameter with its source and its physical range
 (``check`` refuses a value outside it, naming the parameter and the range); ``SURFACES``
-the friction scale of each road surface.
+the friction scale of each road surface. :class:`ChassisParams` holds what the slip-tyre car
+has beyond its tyres, with sources and ranges alike: the brakes' torque and front/rear
+balance (set on the model's brake actuators), the ABS and the lateral-force compliance
+steer (both in the plugin). The plugin also reads the friction of the terrain's surface
+patches (``terrain.SurfacePatch``) at each tyre's contact point.
 """
 
 from __future__ import annotations
