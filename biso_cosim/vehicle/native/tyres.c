@@ -22,8 +22,8 @@
  *   contact point (mj_applyFT into qfrc_passive); advance (after MuJoCo's velocity update)
  *   integrates the states with the new velocities (semi-implicit, the |V_x| term implicit)
  *   and stores the normal loads. One mj_step(m, d, n) call advances n steps, no Python.
- * - ABS (here, at the physics rate: a modulator's valves act within milliseconds, faster
- *   than the 20 ms control period, and a locking wheel's slip grows in tens of ms): each
+ * - ABS (here, at the physics rate: a modulator's valves act within milliseconds, and a
+ *   wheel past its peak slip locks within a few 20 ms control periods or fewer): each
  *   wheel's release R of its brake torque follows dR/dt = k_abs (s - s_abs lambda_mu) in [0, 1]
  *   (integral control of the braking slip s = V_sx sign(V_x)/|V_x|, the true slip: an ideal
  *   wheel-speed and reference-speed estimate), none while the brake command is 0 or below
