@@ -114,6 +114,28 @@ def test_drive_fraction_launch_traction_control_and_no_engine_braking():
     assert _drivetrain_controls(c, 1.0, np.array([10.0, 10.0, 15.0, 15.0]))[0] == 0.0
 
 
+def test_the_traction_control_catches_one_spinning_rear_wheel_but_not_a_bend():
+    """The slip is the faster rear wheel's against the front wheel of its side: one wheel
+    spinning up (the open differential's unloaded inner wheel) is cut as both would be,
+    where the mean of the two would let it spin; in a bend each rear wheel runs on a smaller
+    radius than the front one of its side, so cornering is no slip."""
+    c = drivetrain_coefficients(DRIVETRAIN, mass_kg=M, wheel_radius_m=R, rear_load_share=SHARE,
+                                cg_height_over_wheelbase=HL)
+    free = _drivetrain_controls(c, 0.2, np.full(4, 60.0))[0]
+    assert free == pytest.approx(0.2 * DRIVETRAIN.peak_wheel_torque_nm)
+    # the inner rear wheel at 25 % slip, the outer rolling: mean slip 12.5 % (barely cut), cut by 25 %'s
+    s_t, s_c = DRIVETRAIN.slip_target, DRIVETRAIN.slip_cut
+    one = _drivetrain_controls(c, 0.2, np.array([60.0, 60.0, 75.0, 60.0]))[0]
+    assert one == pytest.approx(free * (s_c - 0.25) / (s_c - s_t))
+    assert _drivetrain_controls(c, 0.2, np.array([60.0, 60.0, 60.0, 75.0]))[0] == pytest.approx(one)
+    # a bend of radius 8 m at the rear axle (wheelbase 2.64 m, track 1.54 m), rolling without
+    # slip: each wheel's speed is its radius; the outer rear turns 4 % faster than the front mean
+    L, T, r_axle = 2.64, 1.54, 8.0
+    rates = np.array([math.hypot(r_axle - T / 2, L), math.hypot(r_axle + T / 2, L), r_axle - T / 2, r_axle + T / 2])
+    assert rates[3] / rates[:2].mean() > 1.035
+    assert _drivetrain_controls(c, 0.2, 8.0 * rates)[0] == pytest.approx(0.2 * DRIVETRAIN.peak_wheel_torque_nm)
+
+
 def test_driving_resistances():
     v = 30.0
     want = 0.5 * 1.225 * DRIVETRAIN.drag_area_m2 * v * v + DRIVETRAIN.rolling_resistance * M * 9.80665

@@ -117,3 +117,84 @@ def test_the_route_surface_changes_the_braking_as_its_friction_says():
     assert dist["dry"] > 14.0 ** 2 / (2 * mu_dry * g) * 0.95
     assert dist["snow"] > 14.0 ** 2 / (2 * mu_dry * SURFACES["snow"] * g) * 0.95
     assert dist["snow"] > 2.0 * dist["dry"]
+
+
+def _rolling_stop(route, speed_mps: float = 14.0) -> float:
+    """Stopping distance (m) with all four brakes on full from ``speed_mps``, the car put at
+    that speed at the route's start (wheels rolling with it)."""
+    import mujoco
+
+    from biso_cosim.vehicle.driver import DriverCommand
+    from biso_cosim.vehicle.sim import VehicleSim
+
+    sim = VehicleSim(route)
+    m, d = sim.model, sim.data
+    d.qvel[0] = speed_mps
+    for w in ("fl", "fr", "rl", "rr"):
+        d.qvel[m.jnt_dofadr[m.joint(f"{w}_spin").id]] = speed_mps / sim.index.wheel_radius_m
+    mujoco.mj_forward(m, d)
+    x0 = float(d.qpos[0])
+    for _ in range(50 * 20):
+        sim.apply(DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0))
+        sim.step()
+        if abs(d.qvel[0]) < 0.02:
+            break
+    return float(d.qpos[0]) - x0
+
+
+def snow_patch(x0_m: float, x1_m: float, **extra) -> dict:
+    return {"x0_m": x0_m, "y0_m": 0.0, "x1_m": x1_m, "y1_m": 0.0, "surface": "snow", **extra}
+
+
+def test_a_patch_of_snow_lengthens_the_braking_distance_by_its_share_of_the_stop():
+    """Braking from 14 m/s on dry asphalt: about 9 m. A snow patch (λ_μ = 0.25) over the whole
+    stop lengthens it to about 1/0.25 times (v²/(2μg), the ABS holding each surface's peak);
+    one from 4 m on to in between (the car enters the snow at the speed left after the dry
+    part: v² − 2·a_dry·d_dry); one beside the road changes nothing, bit for bit."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        dry = _rolling_stop(parse_route(straight(tyres="magic_formula")))
+        stops = {name: _rolling_stop(parse_route(straight(tyres="magic_formula", terrain={"surface": [patch]})))
+                 for name, patch in (("all", snow_patch(-20.0, 200.0)), ("half", snow_patch(4.0, 200.0)),
+                                     ("beside", snow_patch(-20.0, 200.0, y0_m=20.0, y1_m=20.0)))}
+    assert stops["beside"] == dry
+    assert stops["all"] == pytest.approx(dry / SURFACES["snow"], rel=0.1)  # v²/(2μg): μ scaled by λ_μ
+    # the patch from x = 4 m: the front wheels (a wheelbase ahead of the rear axle, which
+    # starts at x = 0) reach it after 4 − L m, the rear wheels after 4 m; from there on the
+    # snow's deceleration: between the two, as if the whole car entered at either point
+    from biso_cosim.vehicle.model import vehicle_parameters
+
+    a_dry, a_snow = 14.0 ** 2 / (2 * dry), 14.0 ** 2 / (2 * stops["all"])
+    entered = [4.0 - vehicle_parameters()["wheelbase_m"], 4.0]
+    late, early = (d + (14.0 ** 2 - 2 * a_dry * d) / (2 * a_snow) for d in entered[::-1])
+    assert dry < stops["half"] < stops["all"]
+    assert late < stops["half"] < early
+
+
+@pytest.mark.parametrize("patch, message", [
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 10.0, "y1_m": 0.0, "surface": "mud"},
+     "my.toml: terrain.surface[0]: surface must be one of dry, wet, gravel, snow, ice or a friction scale in "
+     "(0, 1.5], got 'mud'"),
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 10.0, "y1_m": 0.0, "surface": 2.0},
+     "my.toml: terrain.surface[0]: surface friction scale must be in (0, 1.5], got 2.0"),
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 10.0, "y1_m": 0.0, "surface": "wet", "width_m": -1.0},
+     "my.toml: terrain.surface[0]: surface: width_m must be a positive number, got -1.0"),
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 0.0, "y1_m": 0.0, "surface": "wet"},
+     "my.toml: terrain.surface[0]: surface: the ends (x0_m, y0_m) and (x1_m, y1_m) must differ"),
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 10.0, "surface": "wet"}, "my.toml: terrain.surface[0]: missing field(s) ['y1_m']"),
+    ({"x0_m": 0.0, "y0_m": 0.0, "x1_m": 10.0, "y1_m": 0.0, "surface": "wet", "mu": 1},
+     "my.toml: terrain.surface[0]: unknown field(s) ['mu']"),
+    ({"x0_m": "a", "y0_m": 0.0, "x1_m": 10.0, "y1_m": 0.0, "surface": "wet"},
+     "my.toml: terrain.surface[0]: field 'x0_m' must be a number, got 'a'"),
+])
+def test_bad_surface_patches_are_one_line_naming_the_entry_and_field(patch, message):
+    with pytest.raises(ValueError) as info:
+        parse_route(straight(tyres="magic_formula", terrain={"surface": [patch]}), source="my.toml")
+    assert str(info.value).startswith(message) and "\n" not in str(info.value)
+
+
+def test_surface_patches_need_the_magic_formula_tyres():
+    with pytest.raises(ValueError) as info:
+        parse_route(straight(terrain={"surface": [snow_patch(0.0, 10.0)]}), source="my.toml")
+    assert str(info.value) == ("my.toml: terrain.surface needs tyres = \"magic_formula\" (the coulomb tyres have "
+                               "one friction everywhere)")

@@ -45,6 +45,12 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     y_m = 20.0
     radius_m = 60.0
     height_m = 3.0
+    # [[terrain.surface]]            # optional, tyres = "magic_formula" only: a stretch of road
+    # x0_m = 300.0                   # with its own surface, from (x0_m, y0_m) to (x1_m, y1_m),
+    # y0_m = 0.0                     # width_m wide (default 8 m); surface: a name of
+    # x1_m = 340.0                   # vehicle.tyres.SURFACES or a friction scale in (0, 1.5];
+    # y1_m = 0.0                     # a later patch lies over an earlier one
+    # surface = "snow"
 
     [[gnss_outage]]                  # optional: where a GNSS receiver has no fix (a tunnel,
     x0_m = 200.0                     # the road under a bridge): within half_width_m of the
@@ -404,11 +410,17 @@ def parse_route(data: dict, source: str = "<route>") -> Route:
     terrain_data = data.get("terrain", {})
     if not isinstance(terrain_data, dict):
         raise ValueError(f"{where}: [terrain] must be a table")
-    unknown = set(terrain_data) - {"resolution_m", "feature"}
+    unknown = set(terrain_data) - {"resolution_m", "feature", "surface"}
     if unknown:
-        raise ValueError(f"{where}: unknown key(s) in [terrain]: {sorted(unknown)}; expected ['feature', 'resolution_m']")
+        raise ValueError(f"{where}: unknown key(s) in [terrain]: {sorted(unknown)}; expected ['feature', "
+                         "'resolution_m', 'surface']")
     resolution = _number(terrain_data.get("resolution_m", 0.5), f"{where}: terrain.resolution_m", minimum=0.0, strict=True)
     terrain = Terrain.from_dict(terrain_data.get("feature", []), resolution_m=resolution, where=f"{where}: terrain.feature")
+    surfaces = Terrain.surfaces_from_dict(terrain_data.get("surface", []), where=f"{where}: terrain.surface")
+    if surfaces and tyres == "coulomb":
+        raise ValueError(f"{where}: terrain.surface needs tyres = \"magic_formula\" (the coulomb tyres have one "
+                         "friction everywhere)")
+    terrain = replace(terrain, surfaces=surfaces)
 
     outages = []
     raw_outages = data.get("gnss_outage", [])

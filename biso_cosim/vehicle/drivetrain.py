@@ -25,10 +25,13 @@ where, for each forward gear g of overall ratio G_g = i_g·i_final (reverse gear
   simulation state needs nothing else);
 * traction control: the torque is limited to what the rear axle's traction allows at
   μ_TC with the load transfer of the acceleration (``traction_torque_nm``), and ``τ_TC``
-  cuts it by the drive slip of the rear axle against the undriven front
-  axle, ``s = (ω_rear − ω_front)/max(|ω_front|, ω_min)`` (in the direction of drive), leaves
-  the torque alone up to ``s_target`` and cuts it linearly to zero at ``s_cut``, as an
-  ESP/ASR system does from the wheel-speed sensors;
+  cuts it by the larger drive slip of the two rear wheels, each against the undriven front
+  wheel of its side, ``s = max_side (ω_rear,side − ω_front,side)/max(|ω_front,side|, ω_min)``
+  (in the direction of drive; in a bend a rear wheel runs on a smaller radius than the front
+  wheel of its side, so cornering reads as no slip), leaves the torque alone up to
+  ``s_target`` and cuts it linearly to zero at ``s_cut``, as an ESP/ASR system does from the
+  wheel-speed sensors: one wheel spinning up through the open differential (the unloaded
+  inner wheel in a fast bend) is caught, where the axle's mean slip would let it spin;
 * no engine braking: u = 0 leaves the wheels free (as with the clutch open), the brakes
   slow the car; u < 0 engages reverse, whose torque at a forward-rolling car is that of the
   reverse gear at the engine speed |ω_rear|·G_R, none above the rev limit;
@@ -251,16 +254,23 @@ def _traction_factor(c, slip):
 
 
 @jit
-def _wheel_torque(c, drive, omega_rear, omega_front):
+def _wheel_torque(c, drive, omega_rl, omega_rr, omega_fl, omega_fr):
     """(torque on the rear differential, N·m, signed like ``drive``; gear) for the drive
-    command ``drive`` in [-1, 1] at the mean rear and front wheel speeds (rad/s)."""
+    command ``drive`` in [-1, 1] at the four wheels' speeds (rad/s): the engine turns with
+    the rear wheels' mean (the differential's crown wheel); the traction control cuts by the
+    larger drive slip of the two rear wheels, each against the undriven front wheel of its
+    side (in the direction of drive; in a bend each rear wheel runs on a smaller radius than
+    the front wheel ahead of it, so cornering alone never reads as slip), so that one wheel
+    spinning up (the unloaded inner wheel in a bend, through the open differential) is
+    caught, not averaged away."""
     if drive == 0.0:
         return 0.0, 0
     sign = 1.0 if drive > 0.0 else -1.0
-    rear, front = sign * omega_rear, sign * omega_front  # positive in the direction of drive
-    available, gear = _available_torque(c, drive < 0.0, rear)
+    rl, rr, fl, fr = sign * omega_rl, sign * omega_rr, sign * omega_fl, sign * omega_fr  # positive in the direction of drive
+    available, gear = _available_torque(c, drive < 0.0, 0.5 * (rl + rr))
     torque = min(abs(drive) * c[C_PEAK], available, c[C_TRACTION])
-    slip = (rear - front) / max(abs(front), c[C_SLIP_FLOOR])
+    floor = c[C_SLIP_FLOOR]
+    slip = max((rl - fl) / max(abs(fl), floor), (rr - fr) / max(abs(fr), floor))
     return sign * torque * _traction_factor(c, slip), gear
 
 
@@ -277,8 +287,7 @@ def _drivetrain_controls(c, drive, wheel_rates):
     """(drive torque, N·m; resistance, N) for the drive command from the wheel spin rates
     ``wheel_rates`` (fl, fr, rl, rr, rad/s)."""
     front = 0.5 * (wheel_rates[0] + wheel_rates[1])
-    rear = 0.5 * (wheel_rates[2] + wheel_rates[3])
-    torque, _ = _wheel_torque(c, drive, rear, front)
+    torque, _ = _wheel_torque(c, drive, wheel_rates[2], wheel_rates[3], wheel_rates[0], wheel_rates[1])
     return torque, _resistance_n(c, front)
 
 
@@ -294,7 +303,8 @@ def wheel_torque(drive: float, omega_rear_rad_s: float, omega_front_rad_s: float
         raise ValueError(f"drive must be in [-1, 1], got {drive!r}")
     c = drivetrain_coefficients(params, mass_kg=1.0, wheel_radius_m=wheel_radius_m)
     c[C_TRACTION] = math.inf
-    torque, gear = _wheel_torque(c, float(drive), float(omega_rear_rad_s), float(omega_front_rad_s))
+    rear, front = float(omega_rear_rad_s), float(omega_front_rad_s)
+    torque, gear = _wheel_torque(c, float(drive), rear, rear, front, front)
     return float(torque), int(gear)
 
 

@@ -32,14 +32,16 @@ def car_spec() -> mujoco.MjSpec:
 
 
 def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: int = 0,
-                tyres: str = "coulomb", tyre_params=None,
+                tyres: str = "coulomb", tyre_params=None, chassis_params=None,
                 surface: str | float = "dry") -> tuple[mujoco.MjModel, list[HeightField]]:
     """Compile the car on ``terrain``: the ground plane plus one height field per patch.
 
     ``tyres``: ``"coulomb"`` (the default: MuJoCo's Coulomb friction on the sphere wheels) or
     ``"magic_formula"`` (slip-based tyre forces of ``vehicle.tyres``, a C engine plugin, with
     ``tyre_params``, default ``tyres.TYRES``, on a road of friction ``surface``: a name of
-    ``tyres.SURFACES`` or a scale; only with the magic_formula tyres).
+    ``tyres.SURFACES`` or a scale; only with the magic_formula tyres; and ``chassis_params``,
+    default ``tyres.CHASSIS``: the brakes' torque and balance, the ABS, the compliance steer;
+    the terrain's surface patches, ``Terrain.surfaces``, set the friction where they lie).
 
     Returns the model and the sampled patches. The magnetic field of the model stays zero:
     the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`. With
@@ -52,15 +54,17 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: i
         raise ValueError(f"history_steps must be an int >= 0, got {history_steps!r}")
     if tyres not in ("coulomb", "magic_formula"):
         raise ValueError(f"tyres must be 'coulomb' or 'magic_formula', got {tyres!r}")
-    if tyres == "coulomb" and (tyre_params is not None or surface != "dry"):
-        raise ValueError("tyre_params and surface apply to tyres='magic_formula' only")
+    if tyres == "coulomb" and (tyre_params is not None or chassis_params is not None or surface != "dry"):
+        raise ValueError("tyre_params, chassis_params and surface apply to tyres='magic_formula' only")
+    if tyres == "coulomb" and terrain.surfaces:
+        raise ValueError("the terrain's surface patches apply to tyres='magic_formula' only")
     spec = car_spec()
     ground_friction = _GROUND_FRICTION
     if tyres == "magic_formula":
         from biso_cosim.vehicle.tyres import add_tyre_plugin, surface_friction
 
         ground_friction = [surface_friction(surface), *_GROUND_FRICTION[1:]]
-        add_tyre_plugin(spec, tyre_params)
+        add_tyre_plugin(spec, tyre_params, chassis_params, surfaces=terrain.surfaces)
     spec.option.timestep = timestep_s
     for sensor in spec.sensors:
         sensor.nsample = history_steps
@@ -186,7 +190,8 @@ def vehicle_parameters(model: mujoco.MjModel | None = None, drivetrain=None) -> 
         "max_steer_rad": float(model.actuator_ctrlrange[idx.steer][1]),
         "max_drive_torque_nm": drivetrain.peak_wheel_torque_nm,
         "wheel_damping_nms_per_rad": float(model.dof_damping[model.jnt_dofadr[model.joint("rl_spin").id]]),
-        "max_brake_torque_per_wheel_nm": float(model.actuator_forcerange[idx.brakes[0]][1]),
+        # the four wheels' mean (the slip-tyre car's brakes differ front and rear: tyres.ChassisParams)
+        "max_brake_torque_per_wheel_nm": float(np.mean(model.actuator_forcerange[idx.brakes, 1])),
         # a damper actuator's force is gainprm[2]·ctrl·velocity with gainprm[2] = -kv
-        "brake_kv_nms_per_rad": float(-model.actuator_gainprm[idx.brakes[0]][2]),
+        "brake_kv_nms_per_rad": float(-np.mean(model.actuator_gainprm[idx.brakes, 2])),
     }

@@ -41,7 +41,8 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Hill", "Ridge", "Bank", "Hump", "Washboard", "Rough", "Road", "Terrain", "FEATURE_TYPES", "HeightField",
+__all__ = ["Hill", "Ridge", "Bank", "Hump", "Washboard", "Rough", "Road", "Terrain", "SurfacePatch", "FEATURE_TYPES",
+           "HeightField",
            "ISO8608_GD_N0"]
 
 
@@ -467,11 +468,48 @@ class HeightField:
 
 
 @dataclass(frozen=True)
+class SurfacePatch:
+    """A stretch of road with its own surface: the rectangle from (x0_m, y0_m) to (x1_m, y1_m),
+    ``width_m`` wide, of ``surface`` (a name of ``vehicle.tyres.SURFACES`` or a friction scale
+    in (0, 1.5] of dry asphalt's). It raises nothing; the slip-based tyres read its friction
+    where their contact lies in it (a later patch over an earlier one), sharp at its edges."""
+
+    x0_m: float
+    y0_m: float
+    x1_m: float
+    y1_m: float
+    surface: str | float
+    width_m: float = 8.0
+
+    @property
+    def friction_scale(self) -> float:
+        from biso_cosim.vehicle.tyres import surface_friction
+
+        return surface_friction(self.surface)
+
+    def plugin_numbers(self) -> tuple[float, ...]:
+        """The tyre plugin's 7 numbers: centre, unit vector along, half length, half width, λ_μ."""
+        dx, dy = self.x1_m - self.x0_m, self.y1_m - self.y0_m
+        length = math.hypot(dx, dy)
+        return (0.5 * (self.x0_m + self.x1_m), 0.5 * (self.y0_m + self.y1_m), dx / length, dy / length,
+                0.5 * length, 0.5 * self.width_m, self.friction_scale)
+
+    def check(self) -> None:
+        if not (math.isfinite(self.width_m) and self.width_m > 0.0):
+            raise ValueError(f"surface: width_m must be a positive number, got {self.width_m!r}")
+        if math.hypot(self.x1_m - self.x0_m, self.y1_m - self.y0_m) == 0.0:
+            raise ValueError("surface: the ends (x0_m, y0_m) and (x1_m, y1_m) must differ")
+        self.friction_scale  # noqa: B018 -- a bad name or scale: one line naming the allowed ones
+
+
+@dataclass(frozen=True)
 class Terrain:
-    """The ground of a route: flat, plus a tuple of features (heights add up)."""
+    """The ground of a route: flat, plus a tuple of features (heights add up), and surface
+    patches (``SurfacePatch``: friction, no height)."""
 
     features: tuple = field(default_factory=tuple)
     resolution_m: float = 0.5
+    surfaces: tuple = field(default_factory=tuple)
 
     def height(self, x, y) -> np.ndarray:
         """Terrain height (m) at ENU positions x, y (m); broadcasts like NumPy."""
@@ -581,3 +619,40 @@ class Terrain:
         if not (math.isfinite(resolution_m) and 0.02 <= resolution_m <= 5.0):
             raise ValueError(f"{where}: resolution_m must be in [0.02, 5] m, got {resolution_m}")
         return Terrain(features=tuple(features), resolution_m=resolution_m)
+
+    @staticmethod
+    def surfaces_from_dict(items: list[dict], where: str = "terrain.surface") -> tuple[SurfacePatch, ...]:
+        """Surface patches from route-file entries ``{"x0_m": ..., "surface": "snow", ...}``;
+        errors name the entry and the field, in one line."""
+        if not isinstance(items, list):
+            raise ValueError(f"{where}: must be a list of tables ([[terrain.surface]])")
+        names = {f.name for f in fields(SurfacePatch)}
+        required = {f.name for f in fields(SurfacePatch) if f.default is MISSING}
+        out = []
+        for index, item in enumerate(items):
+            label = f"{where}[{index}]"
+            if not isinstance(item, dict):
+                raise ValueError(f"{label}: each surface patch must be a table")
+            unknown = set(item) - names
+            if unknown:
+                raise ValueError(f"{label}: unknown field(s) {sorted(unknown)}; expected {sorted(names)}")
+            missing = required - set(item)
+            if missing:
+                raise ValueError(f"{label}: missing field(s) {sorted(missing)}")
+            values = {}
+            for key, value in item.items():
+                if key == "surface":
+                    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+                        raise ValueError(f"{label}: surface must be a name or a friction scale, got {value!r}")
+                    values[key] = value if isinstance(value, str) else float(value)
+                elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                    raise ValueError(f"{label}: field {key!r} must be a number, got {value!r}")
+                else:
+                    values[key] = float(value)
+            patch = SurfacePatch(**values)
+            try:
+                patch.check()
+            except ValueError as exc:
+                raise ValueError(f"{label}: {exc}") from None
+            out.append(patch)
+        return tuple(out)

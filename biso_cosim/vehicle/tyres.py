@@ -15,7 +15,11 @@ compiler flags and MuJoCo's version, and loaded once per process with
 
 :class:`TyreParams` holds each parameter with its source and its physical range
 (``check`` refuses a value outside it, naming the parameter and the range); ``SURFACES``
-the friction scale of each road surface.
+the friction scale of each road surface. :class:`ChassisParams` holds what the slip-tyre car
+has beyond its tyres, with sources and ranges alike: the brakes' torque and front/rear
+balance (set on the model's brake actuators), the ABS and the lateral-force compliance
+steer (both in the plugin). The plugin also reads the friction of the terrain's surface
+patches (``terrain.SurfacePatch``) at each tyre's contact point.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ import numpy as np
 
 from biso_cosim.estimators._base import param
 
-__all__ = ["TyreParams", "TYRES", "SURFACES", "TYRE_MODELS", "PLUGIN_NAME", "plugin_library", "load_plugin",
+__all__ = ["TyreParams", "TYRES", "ChassisParams", "CHASSIS", "SURFACES", "TYRE_MODELS", "PLUGIN_NAME", "plugin_library", "load_plugin",
            "magic_formula", "tyre_states", "STATE_STRIDE", "surface_friction"]
 
 PLUGIN_NAME = "biso.tyres"
@@ -133,36 +137,110 @@ class TyreParams:
                 raise ValueError(f"TyreParams.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
                                  f"got {value!r}")
 
-    def config(self) -> dict[str, str]:
-        """The plugin instance's configuration: every parameter by name, exactly (repr)."""
+    def config(self, chassis: "ChassisParams | None" = None) -> dict[str, str]:
+        """The plugin instance's configuration: every parameter by name, exactly (repr), with
+        the plugin's parameters of ``chassis`` (default ``CHASSIS``)."""
         self.check()
-        return {name: repr(float(value)) for name, value in asdict(self).items()}
+        values = {**asdict(self), **_plugin_chassis(CHASSIS if chassis is None else chassis)}
+        return {name: repr(float(value)) for name, value in values.items()}
 
-    def array(self) -> np.ndarray:
-        """The parameters in the C plugin's order (``biso_tyres_param_name``)."""
+    def array(self, chassis: "ChassisParams | None" = None) -> np.ndarray:
+        """The parameters in the C plugin's order (``biso_tyres_param_name``), with the
+        plugin's parameters of ``chassis`` (default ``CHASSIS``)."""
         self.check()
         lib = _ctypes_library()
-        values = asdict(self)
+        values = {**asdict(self), **_plugin_chassis(CHASSIS if chassis is None else chassis)}
         names = [lib.biso_tyres_param_name(i).decode() for i in range(lib.biso_tyres_param_count())]
         if sorted(names) != sorted(values):
-            raise RuntimeError(f"the C plugin's parameters {names} are not TyreParams' {sorted(values)}")
+            raise RuntimeError(f"the C plugin's parameters {names} are not TyreParams' and ChassisParams' "
+                               f"{sorted(values)}")
         return np.array([values[n] for n in names], dtype=np.float64)
 
     @staticmethod
     def table() -> str:
         """The parameters as a Markdown table with their ranges (docs/vehicle.md shows it)."""
-        rows = ["| parameter | symbol | unit | default | range | meaning | source |", "|---|---|---|---|---|---|---|"]
-        for f in fields(TyreParams):
-            lo, hi = _RANGES[f.name]
-            m = f.metadata
-            cells = [str(c).replace("|", "\\|") for c in (m["symbol"], m["unit"], m["doc"], m["source"])]
-            rows.append(f"| `{f.name}` | {cells[0]} | {cells[1]} | `{f.default!r}` | {lo:g} to {hi:g} | "
-                        f"{cells[2]} | {cells[3]} |")
-        return "\n".join(rows)
+        return _table(TyreParams, _RANGES)
 
 
 TYRES = TyreParams()
 """The reference car's tyres."""
+
+_CHASSIS_RANGES = {
+    "brake_torque_nm": (1000.0, 20000.0), "brake_balance_front": (0.5, 0.9), "abs_slip_target": (0.03, 0.4),
+    "abs_gain_per_s": (1.0, 1000.0), "abs_speed_min_mps": (0.1, 10.0), "compliance_steer_rad_per_n": (0.0, 3e-5),
+}
+_PLUGIN_CHASSIS = ("abs_slip_target", "abs_gain_per_s", "abs_speed_min_mps", "compliance_steer_rad_per_n")
+"""The ChassisParams the C plugin reads (the brakes' torque and balance are the model's actuators)."""
+
+
+@dataclass(frozen=True)
+class ChassisParams:
+    """Brakes, ABS and steering compliance of the car on the slip-based tyres (the Coulomb
+    car keeps car.xml's equal brakes: its logs are the invariants, and with Coulomb friction a
+    locked wheel grips as a rolling one, so there is nothing for an ABS to do)."""
+
+    brake_torque_nm: float = param(6000.0, symbol="T_b,max", unit="N·m",
+                                   doc="largest brake torque of the four wheels together",
+                                   source="chosen: 1.5 g at the wheel radius for the 1300 kg car, enough to lock "
+                                          "every wheel on dry asphalt (μ ≈ 1.2 of the tyres), as a real car's "
+                                          "brakes can; car.xml's 4 × 1000 N·m give 0.99 g")
+    brake_balance_front: float = param(0.75, symbol="φ_f", unit="-",
+                                       doc="front axle's share of the brake torque (each wheel's brake damper "
+                                           "gain and torque limit; their mean stays car.xml's, so a brake "
+                                           "command asks the same total torque)",
+                                       source="the ideal share of the axle loads (l_r + z·h)/L at a deceleration "
+                                              "z = 0.8 g is 0.76 for this car (l_r = 1.584 m, h = 0.524 m, "
+                                              "L = 2.64 m; Wong, Theory of Ground Vehicles, §3.5): the front "
+                                              "wheels lock first up to 0.76 g, the ABS handles beyond")
+    abs_slip_target: float = param(0.12, symbol="κ_ABS", unit="-",
+                                   doc="ABS: braking slip each wheel's modulator holds on dry asphalt (times "
+                                       "the surface's λ_μ elsewhere, as the tyre's peak slip moves)",
+                                   source="just below the tyres' peak of F_x (κ = 0.13-0.16 at 5000-2300 N: "
+                                          "the Magic Formula of TyreParams), on its stable side")
+    abs_gain_per_s: float = param(40.0, symbol="k_ABS", unit="1/s",
+                                  doc="ABS: rate of the release of the brake torque per unit of slip beyond "
+                                      "the target (integral slip control, at the physics rate)",
+                                  source="chosen: releases a locking wheel (slip 1) by a third in 10 ms, as a "
+                                         "modulator's valves do, without a limit cycle")
+    abs_speed_min_mps: float = param(1.5, symbol="v_ABS", unit="m/s",
+                                     doc="ABS: below this wheel speed the modulator is off (full brake torque)",
+                                     source="ABS systems switch off at walking pace (about 5 km/h)")
+    compliance_steer_rad_per_n: float = param(
+        5.5e-6, symbol="c_δ", unit="rad/N",
+        doc="lateral-force compliance steer: road-wheel angle lost per newton of the front tyres' lateral force "
+            "(0.32 °/kN), a torque on the steering hinge against its servo",
+        source="the mechanism: Gillespie, Fundamentals of Vehicle Dynamics (1992), ch. 6 (compliance steer adds "
+               "c_δ·W_f to the understeer gradient, W_f the front axle load); the value chosen so that the "
+               "understeer gradient falls within the class's 2-4 °/g, not taken from a measured car")
+
+    def check(self) -> None:
+        """ValueError naming the parameter and its range for a value out of physical range."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            lo, hi = _CHASSIS_RANGES[f.name]
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+                raise ValueError(f"ChassisParams.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
+                                 f"got {value!r}")
+
+    @staticmethod
+    def table() -> str:
+        """The parameters as a Markdown table with their ranges (docs/vehicle.md shows it)."""
+        return _table(ChassisParams, _CHASSIS_RANGES)
+
+
+CHASSIS = ChassisParams()
+"""The reference car's brakes, ABS and steering compliance on the slip-based tyres."""
+
+
+def _table(record, ranges) -> str:
+    rows = ["| parameter | symbol | unit | default | range | meaning | source |", "|---|---|---|---|---|---|---|"]
+    for f in fields(record):
+        lo, hi = ranges[f.name]
+        m = f.metadata
+        cells = [str(c).replace("|", "\\|") for c in (m["symbol"], m["unit"], m["doc"], m["source"])]
+        rows.append(f"| `{f.name}` | {cells[0]} | {cells[1]} | `{f.default!r}` | {lo:g} to {hi:g} | "
+                    f"{cells[2]} | {cells[3]} |")
+    return "\n".join(rows)
 
 
 def surface_friction(surface: str | float) -> float:
@@ -176,6 +254,13 @@ def surface_friction(surface: str | float) -> float:
     if not (math.isfinite(value) and 0.0 < value <= 1.5):
         raise ValueError(f"surface friction scale must be in (0, 1.5], got {surface!r}")
     return value
+
+
+def _plugin_chassis(chassis: "ChassisParams") -> dict[str, float]:
+    if not isinstance(chassis, ChassisParams):
+        raise TypeError(f"chassis_params must be a ChassisParams, got {type(chassis).__name__}")
+    chassis.check()
+    return {name: float(getattr(chassis, name)) for name in _PLUGIN_CHASSIS}
 
 
 # ---- the C plugin: build on first use, load once ------------------------------------------
@@ -273,10 +358,12 @@ def magic_formula(fz_n: float, slip_ratio: float, lateral_slip: float, *, params
     return fx.value, fy.value
 
 
-STATE_STRIDE = 15
+STATE_STRIDE = 17
 """Numbers of the plugin state per wheel (tyres.c: slip ratio, lateral slip, load, F_x, F_y,
-in contact, heading (3), left (3), contact point (3))."""
-STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact")
+in contact, the ABS's release of the brake torque, the friction scale under the tyre,
+heading (3), left (3), contact point (3))."""
+STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact", "abs_release",
+                 "friction_scale")
 
 
 def tyre_states(model, data) -> dict[str, np.ndarray]:
@@ -294,17 +381,45 @@ def tyre_states(model, data) -> dict[str, np.ndarray]:
 WHEEL_GEOMS = ("fl_tyre", "fr_tyre", "rl_tyre", "rr_tyre")
 
 
-def add_tyre_plugin(spec, params: TyreParams | None = None) -> None:
+BRAKES = ("brake_fl", "brake_fr", "brake_rl", "brake_rr")
+STEER = "steer"
+
+
+def add_tyre_plugin(spec, params: TyreParams | None = None, chassis: ChassisParams | None = None, *,
+                    surfaces: tuple = ()) -> None:
     """Turn the car of ``spec`` (``model.car_spec()``) to the Magic Formula tyres: its tyre
-    geoms without MuJoCo's friction (condim 1: the contact carries the normal load only) and
-    an instance of the plugin with ``params`` (default ``TYRES``) acting on them."""
+    geoms without MuJoCo's friction (condim 1: the contact carries the normal load only), its
+    brakes to the torque and balance of ``chassis`` (default ``CHASSIS``), and an instance of
+    the plugin with ``params`` (default ``TYRES``) acting on them (with the ABS and the
+    compliance steer of ``chassis``, and the friction of the surface patches ``surfaces``,
+    ``terrain.SurfacePatch`` records)."""
     params = TYRES if params is None else params
+    chassis = CHASSIS if chassis is None else chassis
     if not isinstance(params, TyreParams):
         raise TypeError(f"tyre_params must be a TyreParams, got {type(params).__name__}")
-    config = params.config()
+    config = params.config(chassis)
     load_plugin()
     for name in WHEEL_GEOMS:
         spec.geom(name).condim = 1
+    _set_brakes(spec, chassis)
     spec.activate_plugin(PLUGIN_NAME)  # what <extension><plugin plugin=...> does in MJCF
     instance = spec.add_plugin(name=INSTANCE_NAME, plugin_name=PLUGIN_NAME)
-    instance.config = {**config, "wheels": " ".join(WHEEL_GEOMS)}
+    numbers = [number for patch in surfaces for number in patch.plugin_numbers()]
+    instance.config = {**config, "wheels": " ".join(WHEEL_GEOMS), "brakes": " ".join(BRAKES), "steer": STEER,
+                       "surfaces": " ".join(repr(float(v)) for v in numbers)}
+
+
+def _set_brakes(spec, chassis: ChassisParams) -> None:
+    """Each wheel's brake damper: gain kv_w = 4·φ_w·kv̄ and torque limit φ_w·T_b,max, with φ_w
+    the wheel's share (φ_f/2 front, (1 − φ_f)/2 rear) and kv̄ car.xml's gain (the mean of
+    the four stays kv̄: a brake command asks the same total torque kv̄·u·Σω)."""
+    kv = [-spec.actuator(name).gainprm[2] for name in BRAKES]
+    if not (len(set(kv)) == 1 and kv[0] > 0.0):
+        raise ValueError(f"the car's brakes {BRAKES} must be damper actuators of one gain, got {kv}")
+    for name in BRAKES:
+        share = chassis.brake_balance_front / 2 if name in ("brake_fl", "brake_fr") else (1.0 - chassis.brake_balance_front) / 2
+        actuator = spec.actuator(name)
+        gain = list(actuator.gainprm)
+        gain[2] = -4.0 * share * kv[0]
+        actuator.gainprm = gain
+        actuator.forcerange = [-share * chassis.brake_torque_nm, share * chassis.brake_torque_nm]

@@ -7,7 +7,8 @@
  *   "Tyre and Vehicle Dynamics" (3rd ed., 2012, section 4.3: pure slip with load sensitivity,
  *   combined slip by the weighting functions G_xa, G_yk), without camber, without the
  *   asymmetric shifts (the curve is odd in each slip), scaled by the surface's friction
- *   lambda_mu (friction[0] of the ground geom the tyre touches; 1 = dry asphalt).
+ *   lambda_mu (friction[0] of the ground geom the tyre touches, 1 = dry asphalt, or the
+ *   friction scale of the last surface patch, a rectangle of the road, holding the contact).
  * - The slips are first-order relaxation states (Pacejka 2012, section 7.2.2, "transient
  *   slip"): sigma_x dk/dt + |V_x| k = -V_sx and sigma_y db/dt + |V_x| b = V_sy, with V_x the
  *   wheel centre's velocity along the tyre's heading, V_sx, V_sy the slip velocity of the
@@ -21,11 +22,22 @@
  *   contact point (mj_applyFT into qfrc_passive); advance (after MuJoCo's velocity update)
  *   integrates the states with the new velocities (semi-implicit, the |V_x| term implicit)
  *   and stores the normal loads. One mj_step(m, d, n) call advances n steps, no Python.
+ * - ABS (here, at the physics rate: a modulator's valves act within milliseconds, and a
+ *   wheel past its peak slip locks within a few 20 ms control periods or fewer): each
+ *   wheel's release R of its brake torque follows dR/dt = k_abs (s - s_abs lambda_mu) in [0, 1]
+ *   (integral control of the braking slip s = V_sx sign(V_x)/|V_x|, the true slip: an ideal
+ *   wheel-speed and reference-speed estimate), none while the brake command is 0 or below
+ *   the cut-out speed; compute subtracts R times the brake damper's torque of the step. The
+ *   target scales with the surface's lambda_mu as the tyre's peak slip does (lambda_mu scales
+ *   the peak force, not the slip stiffness), as a real ABS finds the peak on any surface.
+ * - Compliance steer: the front tyres' lateral force F_yf turns the road wheels against it
+ *   by c_delta F_yf: a torque -c_delta kp F_yf on the steering hinge, kp its servo's stiffness.
  * - A non-finite force stops the run: mju_error naming the time and the wheel.
  *
  * Plugin state per wheel (STRIDE numbers, tyres.py reads it): slip ratio, lateral slip
  * tan(alpha), normal load (N), longitudinal and lateral force (N, along the tyre's heading and
- * its left), in contact (0/1), then the contact geometry of the step (heading, left, point).
+ * its left), in contact (0/1), the ABS's release of the brake torque (0-1), the surface's
+ * friction scale under the tyre, then the contact geometry of the step (heading, left, point).
  */
 
 #include <math.h>
@@ -45,21 +57,33 @@
   X(fz0_n) X(pcx1) X(pdx1) X(pdx2) X(pex1) X(pex2) X(pex3) X(pkx1) X(pkx2) X(pkx3) \
   X(pcy1) X(pdy1) X(pdy2) X(pey1) X(pey2) X(pky1) X(pky2) \
   X(rbx1) X(rbx2) X(rcx1) X(rby1) X(rby2) X(rcy1) \
-  X(sigma_x_m) X(sigma_y_m) X(v_low_mps) X(damping_x_ns_per_m) X(damping_y_ns_per_m)
+  X(sigma_x_m) X(sigma_y_m) X(v_low_mps) X(damping_x_ns_per_m) X(damping_y_ns_per_m) \
+  X(abs_slip_target) X(abs_gain_per_s) X(abs_speed_min_mps) X(compliance_steer_rad_per_n)
 
 #define ENUM(name) P_##name,
 enum { PARAMS(ENUM) NPARAM };
 #define NAME(name) #name,
-static const char* const param_names[] = {PARAMS(NAME) "wheels"};
+static const char* const param_names[] = {PARAMS(NAME) "wheels", "brakes", "steer", "surfaces"};
+#define NCONFIG (NPARAM + 4)
+/* surface patches: rectangles of the road with their own friction scale, each given by
+   7 numbers (centre x, y; unit vector along u_x, u_y; half length; half width; lambda_mu) */
+#define MAX_SURFACES 64
+#define SURFACE_STRIDE 7
 
 /* state layout per wheel */
-enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
+enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_RELEASE, S_LAMBDA, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
        STRIDE = S_POINT + 3 };
 
 typedef struct {
   double p[NPARAM];
   int geom[NWHEEL];
   int body[NWHEEL];
+  int brake[NWHEEL];     /* each wheel's brake actuator */
+  int spin_dof[NWHEEL];  /* the dof of its spin joint (the brake's joint) */
+  int steer_dof;         /* the steering hinge's dof (compliance steer) */
+  double steer_kp;       /* the steering servo's stiffness, N m/rad */
+  int nsurface;
+  double surface[MAX_SURFACES * SURFACE_STRIDE];
 } Tyres;
 
 BISO_EXPORT int biso_tyres_param_count(void) { return NPARAM; }
@@ -188,6 +212,60 @@ static int init(const mjModel* m, mjData* d, int instance) {
     mju_error("biso.tyres: wheels must name %d tyre geoms, got '%s'", NWHEEL, wheels ? wheels : "");
     return -1;
   }
+  /* the brake actuators (damper actuators on the wheels' spin joints), one per wheel */
+  const char* brakes = mj_getPluginConfig(m, instance, "brakes");
+  strncpy(buf, brakes ? brakes : "", sizeof(buf) - 1);
+  buf[sizeof(buf) - 1] = '\0';
+  n = 0;
+  for (char* tok = strtok(buf, " "); tok; tok = strtok(NULL, " ")) {
+    int a = n < NWHEEL ? mj_name2id(m, mjOBJ_ACTUATOR, tok) : -1;
+    if (a < 0 || m->actuator_trntype[a] != mjTRN_JOINT) {
+      free(t);
+      mju_error("biso.tyres: brakes must name %d joint actuators of the model, got '%s'", NWHEEL, brakes ? brakes : "");
+      return -1;
+    }
+    t->brake[n] = a;
+    t->spin_dof[n] = m->jnt_dofadr[m->actuator_trnid[2 * a]];
+    n++;
+  }
+  if (n != NWHEEL) {
+    free(t);
+    mju_error("biso.tyres: brakes must name %d brake actuators, got '%s'", NWHEEL, brakes ? brakes : "");
+    return -1;
+  }
+  /* the steering servo (a position actuator on the steering hinge) */
+  const char* steer = mj_getPluginConfig(m, instance, "steer");
+  const int sa = (steer && *steer) ? mj_name2id(m, mjOBJ_ACTUATOR, steer) : -1;
+  if (sa < 0 || m->actuator_trntype[sa] != mjTRN_JOINT || !(m->actuator_gainprm[mjNGAIN * sa] > 0.0)) {
+    free(t);
+    mju_error("biso.tyres: steer must name the steering's position actuator, got '%s'", steer ? steer : "");
+    return -1;
+  }
+  t->steer_dof = m->jnt_dofadr[m->actuator_trnid[2 * sa]];
+  t->steer_kp = m->actuator_gainprm[mjNGAIN * sa];
+  /* the surface patches (none: every ground geom's own friction) */
+  const char* surfaces = mj_getPluginConfig(m, instance, "surfaces");
+  const char* c = surfaces ? surfaces : "";
+  int count = 0;
+  for (;;) {
+    char* end = NULL;
+    double v = strtod(c, &end);
+    if (end == c) break;
+    if (count >= MAX_SURFACES * SURFACE_STRIDE || !isfinite(v)) {
+      free(t);
+      mju_error("biso.tyres: surfaces must be at most %d patches of %d finite numbers", MAX_SURFACES, SURFACE_STRIDE);
+      return -1;
+    }
+    t->surface[count++] = v;
+    c = end;
+  }
+  while (*c == ' ') c++;
+  if (*c || count % SURFACE_STRIDE) {
+    free(t);
+    mju_error("biso.tyres: surfaces must be groups of %d numbers, got '%s'", SURFACE_STRIDE, surfaces);
+    return -1;
+  }
+  t->nsurface = count / SURFACE_STRIDE;
   d->plugin_data[instance] = (uintptr_t)t;
   return 0;
 }
@@ -211,6 +289,24 @@ static void reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int
   (void)plugin_data;
   (void)instance;
   memset(plugin_state, 0, sizeof(mjtNum) * NWHEEL * STRIDE);
+}
+
+/* the friction scale at the contact point: the last surface patch that holds it, else the
+   ground geom's own (friction[0]) */
+static double surface_friction(const Tyres* t, const double* pos, double ground) {
+  for (int k = t->nsurface - 1; k >= 0; k--) {
+    const double* q = t->surface + k * SURFACE_STRIDE;
+    const double dx = pos[0] - q[0], dy = pos[1] - q[1];
+    if (fabs(dx * q[2] + dy * q[3]) <= q[4] && fabs(-dx * q[3] + dy * q[2]) <= q[5]) return q[6];
+  }
+  return ground;
+}
+
+/* the brake actuator a's command, within its control range */
+static double brake_command(const mjModel* m, const mjData* d, int a) {
+  double u = d->ctrl[a];
+  if (m->actuator_ctrllimited[a]) u = fmin(fmax(u, m->actuator_ctrlrange[2 * a]), m->actuator_ctrlrange[2 * a + 1]);
+  return u;
 }
 
 /* passive stage: the forces of the current slip states, applied at the contact points */
@@ -250,7 +346,8 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
       s[S_POINT + k] = con->pos[k];
     }
     s[S_CONTACT] = 1.0;
-    const double lam = m->geom_friction[3 * ground];
+    const double lam = surface_friction(t, con->pos, m->geom_friction[3 * ground]);
+    s[S_LAMBDA] = lam;
     double fx, fy;
     biso_tyres_magic_formula(p, s[S_FZ], s[S_KAPPA], s[S_SLIPY], lam, &fx, &fy);
     /* low-speed damping on the slip velocity, faded in below v_low */
@@ -279,6 +376,28 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
     for (int k = 0; k < 3; k++) force[k] = fx * ex[k] + fy * ey[k];
     mj_applyFT(m, d, force, torque, s + S_POINT, b, d->qfrc_passive);
   }
+  /* ABS: each wheel's modulator releases the share S_RELEASE of its brake's torque (the
+     damper actuator's torque of this step, computed as MuJoCo will: gain (kv) times the
+     joint velocity times the command, within the force range) */
+  for (int w = 0; w < NWHEEL; w++) {
+    const double release = state[w * STRIDE + S_RELEASE];
+    if (!(release > 0.0)) continue;
+    const int a = t->brake[w];
+    const double gear = m->actuator_gear[6 * a];
+    const double* g = m->actuator_gainprm + mjNGAIN * a;
+    const double* bias = m->actuator_biasprm + mjNBIAS * a;
+    const double velocity = gear * d->qvel[t->spin_dof[w]];
+    const double u = brake_command(m, d, a);
+    double force = (g[0] + g[2] * velocity) * u + bias[0] + bias[2] * velocity;
+    if (m->actuator_forcelimited[a]) {
+      force = fmin(fmax(force, m->actuator_forcerange[2 * a]), m->actuator_forcerange[2 * a + 1]);
+    }
+    d->qfrc_passive[t->spin_dof[w]] -= release * gear * force;
+  }
+  /* compliance steer: the front tyres' lateral force turns the road wheels against it by
+     c_delta per newton, as a torque on the steering hinge that deflects its servo so */
+  const double fy_front = state[0 * STRIDE + S_FY] + state[1 * STRIDE + S_FY];
+  d->qfrc_passive[t->steer_dof] -= p[P_compliance_steer_rad_per_n] * t->steer_kp * fy_front;
 }
 
 /* after MuJoCo's velocity update: integrate the slip states, store the solved normal loads */
@@ -307,6 +426,17 @@ static void advance(const mjModel* m, mjData* d, int instance) {
     /* bounded deflection: beyond these the force curve is flat anyway */
     s[S_KAPPA] = fmin(fmax(kappa, -10.0), 10.0);
     s[S_SLIPY] = fmin(fmax(slipy, -10.0), 10.0);
+    /* ABS: integral control of the braking slip (the wheel's slip velocity over its speed,
+       in the direction of travel) to abs_slip_target: the release grows while the slip is
+       beyond the target and shrinks below it; none while not braking or below the cut-out speed */
+    if (brake_command(m, d, t->brake[w]) > 0.0 && speed > p[P_abs_speed_min_mps]) {
+      const double slip = (v[0] > 0.0 ? v[1] : -v[1]) / speed;
+      const double target = p[P_abs_slip_target] * s[S_LAMBDA];
+      const double release = s[S_RELEASE] + dt * p[P_abs_gain_per_s] * (slip - target);
+      s[S_RELEASE] = fmin(fmax(release, 0.0), 1.0);
+    } else {
+      s[S_RELEASE] = 0.0;
+    }
   }
 }
 
@@ -315,7 +445,7 @@ mjPLUGIN_LIB_INIT(biso_tyres) {
   mjp_defaultPlugin(&plugin);
   plugin.name = "biso.tyres";
   plugin.capabilityflags = mjPLUGIN_PASSIVE;
-  plugin.nattribute = NPARAM + 1;
+  plugin.nattribute = NCONFIG;
   plugin.attributes = param_names;
   plugin.nstate = nstate;
   plugin.init = init;
