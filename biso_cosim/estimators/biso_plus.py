@@ -14,7 +14,7 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   of the vehicle (the rear axle's centre), the IMU's velocity is u = (v, v_y, 0) − ω × r_v
   and the specific force is corrected by its acceleration ``u̇ + ω × u`` (longitudinal,
   centripetal and lever-arm terms; v̇, v̇_y and ω̇ low-passed differences), so the tilt
-  reference sees gravity. The axle's sideslip v_y = −D_r |v| f_y: a tyre's slip angle grows
+  reference sees gravity. The axle's sideslip v_y = −(D_r/g₀) |v| f_y: a tyre's slip angle grows
   with its lateral force (steady-state single-track model, Gillespie 1992, ch. 6), and the
   lateral specific force f_y is that force per mass, on a banked road too; D_r = 0 (the
   default) is a point that does not slide sideways. **Wheel slip**: a wheel's speed is the
@@ -261,14 +261,15 @@ class BisoPlusParams:
         0.5, symbol="t_s", unit="s",
         doc="how long after the last sample beyond a_s the speed input stays unused for v̇ (the wheel's "
             "spin-up and landing settle)", source="measured: 0.25-1 s alike (docs/vehicle.md)")
-    rear_slip_gradient_rad_per_mps2: float = param(
-        0.0, symbol="D_r", unit="rad/(m/s²)",
-        doc="slip angle of the axle at r_v per lateral specific force: the point's velocity is taken as "
-            "(v, −D_r |v| f_y, 0) in body axes, f_y the accelerometer's lateral specific force low-passed "
-            "(τ_v), instead of (v, 0, 0); 0: the point does not slide sideways (kinematic steering)",
-        source="steady-state single-track model, α_r = W_r/(C_αr g)·a_y (Gillespie 1992, ch. 6): the axle's "
-               "load over its cornering stiffness; the reference car with magic_formula tyres 0.0079 "
-               "(4.45 °/g; 4.6-4.9 °/g on the ISO 4138 circle, docs/vehicle.md)")
+    rear_slip_gradient_rad_per_g: float = param(
+        0.0, symbol="D_r", unit="rad",
+        doc="slip angle of the axle at r_v per g of lateral specific force: the point's velocity is taken "
+            "as (v, −(D_r/g₀) |v| f_y, 0) in body axes, f_y the accelerometer's lateral specific force "
+            "low-passed (τ_v), instead of (v, 0, 0); 0: the point does not slide sideways (kinematic "
+            "steering)",
+        source="steady-state single-track model, α_r = W_r/C_αr per g (Gillespie 1992, ch. 6): the axle's "
+               "load over its cornering stiffness; the reference car's rear axle with magic_formula tyres "
+               "0.078 (4.45 °/g; 4.6-4.9 °/g on the ISO 4138 circle, docs/vehicle.md)")
     gravity_mps2: float = param(G0, symbol="g", unit="m/s²", doc="gravity used by the gate", source="")
     # -- sensor
     gyro_range_rad_s: float | None = gyro_range_param()
@@ -346,7 +347,7 @@ _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "
                  "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
                  "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
-                 "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_mps2")
+                 "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
@@ -399,7 +400,7 @@ _V_TAU_DIST = _V_INDEX["tau_mag_disturbance_s"]
 _V_SKEW = _V_INDEX["mag_time_skew_s"]
 _V_SLIP_A = _V_INDEX["speed_slip_accel_mps2"]
 _V_SLIP_HOLD = _V_INDEX["speed_slip_hold_s"]
-_V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_mps2"]
+_V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_g"]
 
 
 _alpha_jit = jit(inline="always")(_alpha)
@@ -484,7 +485,7 @@ def biso_plus_derive(v, c):
     c[_C_KAPPA] = v[_V_KAPPA]
     c[_C_A_DIST] = _alpha_jit(h, v[_V_TAU_DIST])
     c[_C_TAU_M2] = v[_V_SKEW] ** two
-    c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP]
+    c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP] / G0
     return -1
 
 
@@ -554,7 +555,7 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     c[_C_A_DIST] = _alpha(h, v["tau_mag_disturbance_s"])
     c[_C_TAU_M2] = v["mag_time_skew_s"] ** 2
     c[_C_SLIP_A], c[_C_SLIP_HOLD] = v["speed_slip_accel_mps2"], v["speed_slip_hold_s"]
-    c[_C_REAR_SLIP] = v["rear_slip_gradient_rad_per_mps2"]
+    c[_C_REAR_SLIP] = v["rear_slip_gradient_rad_per_g"] / G0  # rad per m/s²
     return c
 
 
