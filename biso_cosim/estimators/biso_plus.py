@@ -21,9 +21,10 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   vehicle's only while it rolls on the road. Unloaded over bumps (wheel hop on corrugations,
   14 Hz at 12 m/s on 0.8 m waves) a driven wheel spins up under the drive torque and is pulled
   back to the road's speed when it lands, at tens of m/s², which the vehicle does not feel;
-  compensated, each spin-up tilts the reference forward and the low-pass and the gate average
-  such pulses (which change |f| only as a²/2g) into a pitch error of tens of degrees
-  (docs/vehicle.md, rough_road). Where v̇ and the accelerometer's forward specific force (both
+  compensated, each pulse tilts the reference by v̇/g, and the gate (a horizontal error a
+  changes |f| by only about a²/2g) passes the long moderate spin-ups and down-weights the
+  short sharp landings, so the weighted low-pass leans forward: 11° of pitch RMS on rough_road
+  (docs/vehicle.md). Where v̇ and the accelerometer's forward specific force (both
   low-passed) differ by more than a slope's gravity can explain (a_s), and for t_s after, the
   speed is carried on by the accelerometer's forward acceleration with the estimate's gravity
   removed, and the longitudinal axis has no say in the tilt;
