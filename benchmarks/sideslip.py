@@ -7,14 +7,19 @@ with ``tyres = "coulomb"`` (the car as it is: sphere wheels that steer kinematic
 rear axle does not slide sideways) and once with ``tyres = "magic_formula"`` (slip-based
 tyres on dry asphalt, ``vehicle.tyres``); the same route otherwise (``Route.tyres``). The
 estimators biso_plus (with wheel odometry at the rear axle), VQF and imufusion
-(``compare.run_method``) run on the same samples of each drive.
+(``compare.run_method``) run on the same samples of each drive; biso_plus twice: as
+``compare`` runs it (``rear_slip_gradient_rad_per_g`` = 0, the rear axle assumed not to slide
+sideways) and with the rear axle's slip angle per g of the car's tyres, D_r = W_r/C_αr
+(the single-track model, Gillespie 1992, ch. 6: the rear tyres' static load over their
+cornering stiffness, Pacejka 2012 §4.3; 0 for the coulomb tyres, which steer kinematically).
 
 Printed per route and tyre model: the sideslip angle of the rear axle's centre in bends
 (β = atan2(v_y, v_x) of its velocity in body axes, from the truth at the sensor's samples;
 bends: forward speed above 3 m/s and |v·ω_z| above 1 m/s²), RMS and largest, and the RMS
 roll, pitch and heading errors of each estimator over the whole drive; then, per route, the
-error that the slipping tyres add (magic_formula minus coulomb), and where biso_plus is not
-the best of the three in an angle with the slipping tyres, by how much.
+error that the slipping tyres add (magic_formula minus coulomb), the error that the
+no-sideslip assumption adds with them (biso_plus with D_r = 0 minus with the tyres' D_r), and
+where biso_plus (with D_r) is not the best of the three in an angle, by how much.
 
     nice python benchmarks/sideslip.py                          # every route, 120 s, seed 0
     nice python benchmarks/sideslip.py --routes figure8 slalom --duration 60 --json out.json
@@ -32,15 +37,32 @@ import time
 import numpy as np
 
 from biso_cosim.compare import Dataset, run_method
+from biso_cosim.estimators import make_estimator
 from biso_cosim.cosim import run_route
 from biso_cosim.metrics import ANGLES, angle_errors_deg
 from biso_cosim.routes import load_route, route_names
 from biso_cosim.vehicle.model import car_spec, vehicle_parameters
+from biso_cosim.vehicle.tyres import TYRES as TYRE_PARAMS
 
 METHODS = ("biso_plus", "vqf", "imufusion")
+"""The three compared; biso_plus with the rear axle's slip angle of the tyres (D_r)."""
+NO_SIDESLIP = "biso_plus_dr0"
+"""biso_plus as ``compare.run_method`` runs it: D_r = 0."""
 TYRES = ("coulomb", "magic_formula")
 BEND_SPEED_MPS = 3.0
 BEND_LATERAL_MPS2 = 1.0
+G0 = 9.80665
+
+
+def rear_slip_gradient_rad_per_g(tyres: str) -> float:
+    """The rear axle's steady-state slip angle per g of lateral acceleration, W_r/C_αr: the
+    load of a rear tyre at rest over its cornering stiffness K_yα = p_Ky1 F_z0 sin(2 atan(F_z /
+    (p_Ky2 F_z0))) (Pacejka 2012 §4.3; Gillespie 1992, ch. 6); 0 for the coulomb tyres."""
+    if tyres == "coulomb":
+        return 0.0
+    p, t = vehicle_parameters(), TYRE_PARAMS
+    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G0 / 2.0
+    return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
 
 
 def _rotate_to_body(q_wb: np.ndarray, v_w: np.ndarray) -> np.ndarray:
@@ -92,10 +114,17 @@ def drive(route, duration_s: float, seed: int) -> tuple[Dataset, object, bool]:
 def measure(route_name: str, tyres: str, duration_s: float, seed: int) -> dict:
     route = dataclasses.replace(load_route(route_name), tyres=tyres)
     data, truth, completed = drive(route, duration_s, seed)
+    d_r = rear_slip_gradient_rad_per_g(tyres)
     row = {"route": route_name, "tyres": tyres, "completed": completed, "sideslip": rear_axle_sideslip(truth),
-           "errors": {}}
-    for m in METHODS:
-        err = angle_errors_deg(run_method(m, data), data.q_true)
+           "rear_slip_gradient_rad_per_g": d_r, "errors": {}}
+    est = make_estimator("biso_plus", data.fs_hz, declination_rad=data.declination_rad,
+                         speed_point_b_m=data.speed_point_b_m, rear_slip_gradient_rad_per_g=d_r)
+    outputs = {"biso_plus": est.update(data.gyro_b, data.accel_b, data.mag_b, speed_mps=data.speed_mps).q_wb,
+               NO_SIDESLIP: run_method("biso_plus", data)}
+    for m in METHODS[1:]:
+        outputs[m] = run_method(m, data)
+    for m, q in outputs.items():
+        err = angle_errors_deg(q, data.q_true)
         row["errors"][m] = {a: float(np.sqrt(np.mean(err[a] ** 2))) for a in ANGLES}
     return row
 
@@ -103,29 +132,37 @@ def measure(route_name: str, tyres: str, duration_s: float, seed: int) -> dict:
 def table(rows: list[dict], duration_s: float, seed: int) -> str:
     """Markdown: per route and tyre model the sideslip and the RMS errors; then the added
     error per route and where biso_plus is not the best."""
+    shown = (METHODS[0], NO_SIDESLIP, *METHODS[1:])
+    label = {"biso_plus": "biso_plus (D_r)", NO_SIDESLIP: "biso_plus D_r = 0"}
     head = "| route | tyres | rear-axle β in bends RMS / max ° | bends % | " + \
-        " | ".join(f"{m} roll / pitch / heading RMS °" for m in METHODS) + " |"
-    lines = [f"Each route's first {duration_s:g} s, sensor seed {seed}.", "", head,
-             "|---|---|---|---|" + "---|" * len(METHODS)]
+        " | ".join(f"{label.get(m, m)} roll / pitch / heading RMS °" for m in shown) + " |"
+    d_r = rear_slip_gradient_rad_per_g("magic_formula")
+    lines = [f"Each route's first {duration_s:g} s, sensor seed {seed}; D_r = {d_r:.4f} rad/g "
+             f"({math.degrees(d_r):.2f} °/g) with magic_formula, 0 with coulomb (biso_plus D_r = 0 the same "
+             "numbers there).", "", head, "|---|---|---|---|" + "---|" * len(shown)]
     by = {(r["route"], r["tyres"]): r for r in rows}
     for r in rows:
         s = r["sideslip"]
-        cells = [" / ".join(f"{r['errors'][m][a]:.2f}" for a in ANGLES) for m in METHODS]
+        cells = [" / ".join(f"{r['errors'][m][a]:.2f}" for a in ANGLES) for m in shown]
         lines.append(f"| {r['route']} | {r['tyres']} | {s['rms_deg']:.2f} / {s['max_deg']:.2f} | "
                      f"{100 * s['bends_share']:.0f} | " + " | ".join(cells) + " |")
-    lines += ["", "Added by the slipping tyres (magic_formula − coulomb), RMS °:", "",
-              "| route | " + " | ".join(f"{m} roll / pitch / heading" for m in METHODS) + " | biso_plus not the best "
-              "with magic_formula |", "|---|" + "---|" * (len(METHODS) + 1)]
+    lines += ["", "Added by the slipping tyres (magic_formula − coulomb) and, with them, by the no-sideslip "
+              "assumption (biso_plus D_r = 0 − biso_plus with D_r), RMS °:", "",
+              "| route | " + " | ".join(f"{label.get(m, m)} roll / pitch / heading" for m in METHODS) +
+              " | no-sideslip assumption roll / pitch / heading | biso_plus (D_r) not the best |",
+              "|---|" + "---|" * (len(METHODS) + 2)]
     for name in dict.fromkeys(r["route"] for r in rows):
         if (name, "coulomb") not in by or (name, "magic_formula") not in by:
             continue
         c, s = by[(name, "coulomb")]["errors"], by[(name, "magic_formula")]["errors"]
         cells = [" / ".join(f"{s[m][a] - c[m][a]:+.2f}" for a in ANGLES) for m in METHODS]
+        cells.append(" / ".join(f"{s[NO_SIDESLIP][a] - s['biso_plus'][a]:+.2f}" for a in ANGLES))
         behind = []
-        for a in ANGLES:
-            best = min(METHODS[1:], key=lambda m: s[m][a])
-            if s["biso_plus"][a] > s[best][a]:
-                behind.append(f"{a}: {best} {s[best][a]:.2f} vs {s['biso_plus'][a]:.2f}")
+        for tyres, e in (("coulomb", c), ("magic_formula", s)):
+            for a in ANGLES:
+                best = min(METHODS[1:], key=lambda m: e[m][a])
+                if e["biso_plus"][a] > e[best][a]:
+                    behind.append(f"{tyres} {a}: {best} {e[best][a]:.2f} vs {e['biso_plus'][a]:.2f}")
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {'; '.join(behind) or '-'} |")
     return "\n".join(lines)
 

@@ -227,7 +227,9 @@ _PARAM_SETS = {
                   {"tau_speed_s": 0.0, "rest_time_s": 0.0, "gyro_range_rad_s": 3.0},
                   {"tilt_lp_order": 1, "accel_gate_free": 2.0, "mag_time_skew_s": 0.02},
                   {"accel_gate_free": 0.01, "mag_time_skew_s": 0.01, "mag_disturbance_gain": 0.0,
-                   "tau_mag_disturbance_s": 0.0, "mag_heading_noise_ut": 4.0}],
+                   "tau_mag_disturbance_s": 0.0, "mag_heading_noise_ut": 4.0},
+                  {"rear_slip_gradient_rad_per_g": 0.08, "speed_slip_accel_mps2": 2.0, "speed_slip_hold_s": 0.2,
+                   "speed_point_b_m": (-1.2, 0.0, 0.0)}],
 }
 _GENERAL = {"biso": [{"pattern": 13}, {"pattern": 13, "k": 20.0, "k_p": 6.0, "latitude_rad": 0.8}]}
 
@@ -267,11 +269,33 @@ def test_motions(lib, motion):
     speed), with noise and a gyro bias, through every estimator."""
     samples = _noisy_motion(motion, seed=3)
     for kind in KINDS:
-        for params, exact in _cases(kind)[:3] + _cases(kind)[-1:]:
+        for params, exact in _cases(kind)[:3] + _cases(kind)[-2:]:
             py, c = make_estimator(kind, FS, **params), NativeEstimator(lib, kind, FS, **params)
             a, b = _run_both(py, c, samples, kind)
             _assert_same(a, b, exact=exact, what=f"{motion} {kind} {params}")
             _assert_same_state(py, c, exact=exact, what=f"{motion} {kind} {params}")
+
+
+def test_wheel_slip_and_sideslip(lib):
+    """biso_plus on a circle whose wheel speed spins up and drops back every 2 s (a wheel off
+    the road), with the rear axle's sideslip modelled: the slip path and the lateral
+    velocity taken, every output and the state equal."""
+    m = make_motion("circle", 12.0, FS, imu_ahead_m=1.2)
+    rng = np.random.default_rng(7)
+    n = m.t_s.size
+    speed = np.asarray(m.info["speed_mps"], dtype=np.float64).copy()
+    phase = np.arange(n) % 400
+    speed[phase < 30] += 0.1 * phase[phase < 30]
+    speed[rng.integers(0, n, 10)] = np.nan
+    samples = {"gyro_b": m.omega_b + 0.002 * rng.normal(size=(n, 3)),
+               "accel_b": m.specific_force_b + 0.05 * rng.normal(size=(n, 3)),
+               "mag_b": m.mag_b + 0.3 * rng.normal(size=(n, 3)), "speed_mps": speed}
+    params = {"rear_slip_gradient_rad_per_g": 0.08, "speed_point_b_m": (-1.2, 0.0, 0.0)}
+    py, c = make_estimator("biso_plus", FS, **params), NativeEstimator(lib, "biso_plus", FS, **params)
+    a, b = _run_both(py, c, samples, "biso_plus")
+    _assert_same(a, b, what="circle with wheel slip")
+    _assert_same_state(py, c, what="circle with wheel slip")
+    assert (a.flags & fl.ACCEL_GATED).any()
 
 
 def _bad_samples(seed: int = 5) -> dict[str, np.ndarray]:

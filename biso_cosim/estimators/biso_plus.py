@@ -11,10 +11,23 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   (rest: the vehicle's speed ≈ 0 when a speed input is given; else the gyro and
   accelerometer steady and the rate small);
 * **acceleration compensation**: with a speed input v (wheel odometry or GNSS) of a point r_v
-  of the vehicle (rear axle: no sideslip there), the IMU's velocity is u = (v, 0, 0) − ω × r_v
+  of the vehicle (the rear axle's centre), the IMU's velocity is u = (v, v_y, 0) − ω × r_v
   and the specific force is corrected by its acceleration ``u̇ + ω × u`` (longitudinal,
-  centripetal and lever-arm terms; v̇ and ω̇ low-passed differences), so the tilt reference
-  sees gravity;
+  centripetal and lever-arm terms; v̇, v̇_y and ω̇ low-passed differences), so the tilt
+  reference sees gravity. The axle's sideslip v_y = −(D_r/g₀) |v| f_y: a tyre's slip angle grows
+  with its lateral force (steady-state single-track model, Gillespie 1992, ch. 6), and the
+  lateral specific force f_y is that force per mass, on a banked road too; D_r = 0 (the
+  default) is a point that does not slide sideways. **Wheel slip**: a wheel's speed is the
+  vehicle's only while it rolls on the road. Unloaded over bumps (wheel hop on corrugations,
+  14 Hz at 12 m/s on 0.8 m waves) a driven wheel spins up under the drive torque and is pulled
+  back to the road's speed when it lands, at tens of m/s², which the vehicle does not feel;
+  compensated, each pulse tilts the reference by v̇/g, and the gate (a horizontal error a
+  changes |f| by only about a²/2g) passes the long moderate spin-ups and down-weights the
+  short sharp landings, so the weighted low-pass leans forward: 11° of pitch RMS on rough_road
+  (docs/vehicle.md). Where v̇ and the accelerometer's forward specific force (both
+  low-passed) differ by more than a slope's gravity can explain (a_s), and for t_s after, the
+  speed is carried on by the accelerometer's forward acceleration with the estimate's gravity
+  removed, and the longitudinal axis has no say in the tilt;
 * **disturbance-tolerant tilt reference**: the (compensated) specific force is low-pass
   filtered in a quasi-inertial frame I (the gyro's own strapdown frame, as VQF does: Laidig &
   Seel 2023), where gravity is constant and zero-mean accelerations average out without
@@ -235,6 +248,29 @@ class BisoPlusParams:
         source="vehicle geometry")
     tau_speed_s: float = param(
         0.05, symbol="τ_v", unit="s", doc="low-pass of v̇ and ω̇ from differences", source="measured")
+    speed_slip_accel_mps2: float = param(
+        3.0, symbol="a_s", unit="m/s²",
+        doc="wheel slip: the largest difference between the speed input's v̇ and the accelerometer's "
+            "forward specific force f_x (both low-passed, τ_v) while the wheel rolls on the road (gravity "
+            "along the vehicle's x on a slope, g sin θ, and the lever-arm terms). Beyond it the speed is "
+            "not the vehicle's (a wheel unloaded over a bump, spun up by the drive torque or pulled back to "
+            "the road's speed when it lands; a locked wheel): until t_s after the last such sample the "
+            "vehicle's speed is carried on by the accelerometer's forward acceleration (the estimate's "
+            "gravity removed), which then has no say in the tilt (flag ACCEL_GATED)",
+        source="g sin 18° (a 32 % grade, steeper than public roads); measured (docs/vehicle.md, rough_road)")
+    speed_slip_hold_s: float = param(
+        0.5, symbol="t_s", unit="s",
+        doc="how long after the last sample beyond a_s the speed input stays unused for v̇ (the wheel's "
+            "spin-up and landing settle)", source="measured: 0.25-1 s alike (docs/vehicle.md)")
+    rear_slip_gradient_rad_per_g: float = param(
+        0.0, symbol="D_r", unit="rad",
+        doc="slip angle of the axle at r_v per g of lateral specific force: the point's velocity is taken "
+            "as (v, −(D_r/g₀) |v| f_y, 0) in body axes, f_y the accelerometer's lateral specific force "
+            "low-passed (τ_v), instead of (v, 0, 0); 0: the point does not slide sideways (kinematic "
+            "steering)",
+        source="steady-state single-track model, α_r = W_r/C_αr per g (Gillespie 1992, ch. 6): the axle's "
+               "load over its cornering stiffness; the reference car's rear axle with magic_formula tyres "
+               "0.078 (4.45 °/g; 4.6-4.9 °/g on the ISO 4138 circle, docs/vehicle.md)")
     gravity_mps2: float = param(G0, symbol="g", unit="m/s²", doc="gravity used by the gate", source="")
     # -- sensor
     gyro_range_rad_s: float | None = gyro_range_param()
@@ -248,12 +284,15 @@ STATE_LAYOUT = (
     ("gyro_prev", 3), ("angular_accel_lp", 3), ("mag_offset_b", 3), ("field_i", 3), ("offset_cov", 36),
     ("offset_count", 1), ("field_norm", 1), ("field_dip", 1), ("field_known", 1), ("mag_rejected_s", 1),
     ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2), ("accel_bw_i", 6), ("accel_bw_ready", 1),
-    ("mag_disturbance", 1), ("heading_start_s", 1), ("tilt_corr_start", 2),
+    ("mag_disturbance", 1), ("heading_start_s", 1), ("tilt_corr_start", 2), ("speed_slip_s", 1),
+    ("speed_held", 1), ("forward_accel_lp", 1), ("lateral_accel_lp", 1), ("lateral_speed_prev", 1),
+    ("lateral_dvdt", 1),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
- _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST, _S_HEAD_T, _S_TILT_CORR) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST, _S_HEAD_T, _S_TILT_CORR, _S_SLIP_T,
+ _S_VHELD, _S_FXLP, _S_FYLP, _S_VYPREV, _S_DVYDT) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -265,14 +304,15 @@ _COEF_LAYOUT = (
     ("cdh", 1), ("sdh", 1), ("r_v", 3), ("a_speed", 1), ("g", 1), ("gyro_range", 1), ("accel_range", 1),
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
     ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
-    ("bias_w_vertical_free", 1),
+    ("bias_w_vertical_free", 1), ("slip_accel", 1), ("slip_hold", 1), ("rear_slip", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
  _C_BLIM, _C_REST_N, _C_A_REST, _C_REST_W, _C_REST_A, _C_REST_V, _C_BTOL, _C_DTOL, _C_REJ_N, _C_A_FIELD,
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
  _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
- _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF) = (
+ _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF, _C_SLIP_A, _C_SLIP_HOLD,
+ _C_REAR_SLIP) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -308,12 +348,12 @@ _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "
                  "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
                  "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
-                 "bias_heading_factor_free")
+                 "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
              "bias_sigma_motion_rad_s", "bias_sigma_rest_rad_s", "mag_offset_bias_sigma_rad_s",
-             "mag_heading_noise_ut")
+             "mag_heading_noise_ut", "speed_slip_accel_mps2")
 """The real parameters that must be finite and > 0."""
 
 # The parameter record as the jitted derivation reads it (``biso_plus_values``): the real
@@ -359,6 +399,9 @@ _V_HEAD_NOISE = _V_INDEX["mag_heading_noise_ut"]
 _V_KAPPA = _V_INDEX["mag_disturbance_gain"]
 _V_TAU_DIST = _V_INDEX["tau_mag_disturbance_s"]
 _V_SKEW = _V_INDEX["mag_time_skew_s"]
+_V_SLIP_A = _V_INDEX["speed_slip_accel_mps2"]
+_V_SLIP_HOLD = _V_INDEX["speed_slip_hold_s"]
+_V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_g"]
 
 
 _alpha_jit = jit(inline="always")(_alpha)
@@ -443,6 +486,7 @@ def biso_plus_derive(v, c):
     c[_C_KAPPA] = v[_V_KAPPA]
     c[_C_A_DIST] = _alpha_jit(h, v[_V_TAU_DIST])
     c[_C_TAU_M2] = v[_V_SKEW] ** two
+    c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP] / G0
     return -1
 
 
@@ -511,6 +555,8 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     c[_C_KAPPA] = v["mag_disturbance_gain"]
     c[_C_A_DIST] = _alpha(h, v["tau_mag_disturbance_s"])
     c[_C_TAU_M2] = v["mag_time_skew_s"] ** 2
+    c[_C_SLIP_A], c[_C_SLIP_HOLD] = v["speed_slip_accel_mps2"], v["speed_slip_hold_s"]
+    c[_C_REAR_SLIP] = v["rear_slip_gradient_rad_per_g"] / G0  # rad per m/s²
     return c
 
 
@@ -699,6 +745,7 @@ def _bias_update(bx, by, bz, p00, p01, p02, p11, p12, p22, hm, e0, e1, e2, w0, w
 @jit
 def _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, fn, mx, my, mz, acc_ok, mag_ok, speed, speed_given):
     """First sample: the attitude (unless q0 was given) and every filter start from it."""
+    fy = ay if acc_ok else 0.0  # the lateral specific force, before the centripetal part below
     if st[_S_INIT] == 0.0:
         if speed_given and math.isfinite(speed):
             # centripetal part of the vehicle's acceleration (v̇ unknown yet): ω × (v, 0, 0)
@@ -726,7 +773,12 @@ def _biso_plus_start(c, st, gx, gy, gz, ax, ay, az, fn, mx, my, mz, acc_ok, mag_
         st[_S_WPREV + i] = g[i]
         st[_S_ALP + i] = a[i] if acc_ok else 0.0
     st[_S_VPREV] = speed
-    st[_S_VOK] = 1.0 if speed_given and math.isfinite(speed) else 0.0
+    v_ok = speed_given and math.isfinite(speed)
+    st[_S_VOK] = 1.0 if v_ok else 0.0
+    st[_S_VHELD] = speed if v_ok else 0.0
+    st[_S_FXLP] = ax if acc_ok else 0.0
+    st[_S_FYLP] = fy
+    st[_S_VYPREV] = -c[_C_REAR_SLIP] * abs(speed) * fy if v_ok else 0.0
 
 
 @jit(error_model="numpy")
@@ -791,6 +843,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     bw_on = bw_b0 != 0.0
     inv_gate_free = c[_C_INV_GATE_FREE]
     r_head, kappa, a_dist, tau_m2 = c[_C_R_HEAD], c[_C_KAPPA], c[_C_A_DIST], c[_C_TAU_M2]
+    slip_a, slip_hold, rear_slip = c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP]
 
     # ---- state into locals
     lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
@@ -819,6 +872,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     bs0, bs1, bs2, bs3, bs4, bs5 = st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5]
     bw_ok, mdist, head_t = st[_S_BW_OK], st[_S_MDIST], st[_S_HEAD_T]
     tcx, tcy = st[_S_TILT_CORR], st[_S_TILT_CORR + 1]
+    slip_t, vheld, fxlp, fylp = st[_S_SLIP_T], st[_S_VHELD], st[_S_FXLP], st[_S_FYLP]
+    vyprev, dvydt = st[_S_VYPREV], st[_S_DVYDT]
     dtol2 = c[_C_DTOL] * c[_C_DTOL]
 
     # from 0, the samples of the start skipped: an index known to be non-negative needs no
@@ -851,14 +906,48 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
         wpx, wpy, wpz = wx, wy, wz
         v_ok = given and math.isfinite(v)
         comp_x = comp_y = comp_z = 0.0
+        if acc_ok:
+            fxlp += a_v * (ax - fxlp)
+            if rear_slip != 0.0:
+                fylp += a_v * (ay - fylp)
+        slipping = False
+        a_fwd = 0.0
+        vu = v  # the speed of r_v used: the input's, or carried on through a wheel's slip
         if v_ok:
             if vok_prev != 0.0:
                 dvdt += a_v * ((v - vprev) * fs - dvdt)
             vprev = v
-            # IMU velocity u = (v, 0, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
-            ux, uy, uz = v + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
-            comp_x = dvdt + (wdy * dz - wdz * dy) + (wy * uz - wz * uy)
+            # a wheel that does not roll on the road: its v̇ is not what the accelerometer feels
+            if abs(dvdt - fxlp) > slip_a:
+                slip_t = slip_hold
+                slipping = True
+            elif slip_t > 0.0:
+                slip_t -= h
+                slipping = slip_t > 0.0
+            if slipping:
+                # the vehicle's speed carried on by the IMU's forward acceleration f_x − g R̂ᵀe_z·e_x
+                a_fwd = ax - g * 2.0 * (lx * lz - lw * ly) if acc_ok else 0.0
+                vheld += h * a_fwd
+                vu = vheld
+                flags |= fl.ACCEL_GATED
+            else:
+                vheld = v
+            # IMU velocity u = (v, v_y, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
+            ux, uy, uz = vu + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
+            if rear_slip != 0.0:
+                # the axle's sideslip: slip angle D_r f_y (single-track model), outward of the bend
+                vy = -rear_slip * abs(vu) * fylp
+                if vok_prev != 0.0:
+                    dvydt += a_v * ((vy - vyprev) * fs - dvydt)
+                vyprev = vy
+                uy += vy
+            if slipping:  # the estimate's own gravity along x: no say in the tilt
+                comp_x = a_fwd
+            else:
+                comp_x = dvdt + (wdy * dz - wdz * dy) + (wy * uz - wz * uy)
             comp_y = (wdz * dx - wdx * dz) + (wz * ux - wx * uz)
+            if rear_slip != 0.0:
+                comp_y += dvydt
             comp_z = (wdx * dy - wdy * dx) + (wx * uy - wy * ux)
             flags |= fl.ACCEL_COMPENSATED
         vok_prev = 1.0 if v_ok else 0.0
@@ -881,7 +970,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                 rw2 = (wl0 - bx) ** 2 + (wl1 - by) ** 2 + (wl2 - bz) ** 2
                 still = rw2 < thr * thr
             if v_ok:
-                still = still and abs(v) < rest_v
+                still = still and abs(vu) < rest_v
             rest_t = rest_t + h if still else 0.0
             rest = rest_t >= rest_n
         if rest:
@@ -1103,6 +1192,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     st[j], st[j + 1], st[j + 2], st[j + 3], st[j + 4], st[j + 5] = bs0, bs1, bs2, bs3, bs4, bs5
     st[_S_BW_OK], st[_S_MDIST], st[_S_HEAD_T] = bw_ok, mdist, head_t
     st[_S_TILT_CORR], st[_S_TILT_CORR + 1] = tcx, tcy
+    st[_S_SLIP_T], st[_S_VHELD], st[_S_FXLP], st[_S_FYLP] = slip_t, vheld, fxlp, fylp
+    st[_S_VYPREV], st[_S_DVYDT] = vyprev, dvydt
 
 
 @jit

@@ -108,6 +108,9 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     c[C(KAPPA)] = p[P(MAG_DISTURBANCE_GAIN)];
     c[C(A_DIST)] = alpha_of(h, p[P(TAU_MAG_DISTURBANCE_S)]);
     c[C(TAU_M2)] = libm_pow(p[P(MAG_TIME_SKEW_S)], 2.0);
+    c[C(SLIP_ACCEL)] = p[P(SPEED_SLIP_ACCEL_MPS2)];
+    c[C(SLIP_HOLD)] = p[P(SPEED_SLIP_HOLD_S)];
+    c[C(REAR_SLIP)] = p[P(REAR_SLIP_GRADIENT_RAD_PER_G)] / BISO_EST_K_G0;  /* rad per m/s^2 */
     /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
     if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
@@ -314,6 +317,7 @@ static void plus_start(const double *c, double *st, double gx, double gy, double
     int i;
     bq qi;
     bm r;
+    const double fy = acc_ok ? ay : 0.0;  /* the lateral specific force, before the centripetal part below */
     if (st[S(INITIALIZED)] == 0.0) {
         bq q;
         if (isfinite(speed)) {
@@ -345,6 +349,10 @@ static void plus_start(const double *c, double *st, double gx, double gy, double
     st[S(REST_ACCEL_LP) + 2] = acc_ok ? az : 0.0;
     st[S(SPEED_PREV)] = speed;
     st[S(SPEED_PREV_OK)] = isfinite(speed) ? 1.0 : 0.0;
+    st[S(SPEED_HELD)] = isfinite(speed) ? speed : 0.0;
+    st[S(FORWARD_ACCEL_LP)] = acc_ok ? ax : 0.0;
+    st[S(LATERAL_ACCEL_LP)] = fy;
+    st[S(LATERAL_SPEED_PREV)] = isfinite(speed) ? -c[C(REAR_SLIP)] * fabs(speed) * fy : 0.0;
 }
 
 /* ---- the per-sample update ------------------------------------------------------------- */
@@ -398,6 +406,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const int bw_on = bw[0] != 0.0;
         const double inv_gate_free = c[C(INV_GATE_FREE_G)];
         const double r_head = c[C(R_HEAD)], kappa = c[C(KAPPA)], a_dist = c[C(A_DIST)], tau_m2 = c[C(TAU_M2)];
+        const double slip_a = c[C(SLIP_ACCEL)], slip_hold = c[C(SLIP_HOLD)], rear_slip = c[C(REAR_SLIP)];
 
         /* ---- state */
         double lw, lx, ly, lz;
@@ -417,6 +426,10 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         double dipc = st[S(FIELD_DIP_CS)], dips = st[S(FIELD_DIP_CS) + 1];
         double t = st[S(TIME_S)];
         double head_t = st[S(HEADING_START_S)], tcx = st[S(TILT_CORR_START)], tcy = st[S(TILT_CORR_START) + 1];
+        double slip_t = st[S(SPEED_SLIP_S)], vheld = st[S(SPEED_HELD)], fxlp = st[S(FORWARD_ACCEL_LP)];
+        double fylp = st[S(LATERAL_ACCEL_LP)], vyprev = st[S(LATERAL_SPEED_PREV)], dvydt = st[S(LATERAL_DVDT)];
+        double vu = v, a_fwd = 0.0;
+        int slipping = 0;
         double tw;
         int head_start;
         double wx, wy, wz, comp_x = 0.0, comp_y = 0.0, comp_z = 0.0, ex = 0.0, ey = 0.0, ez = 0.0;
@@ -444,14 +457,46 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         wdz += a_v * ((wz - wpz) * fs - wdz);
         wpx = wx; wpy = wy; wpz = wz;
         v_ok = isfinite(v);
+        if (chk.acc_ok) {
+            fxlp += a_v * (ax - fxlp);
+            if (rear_slip != 0.0) fylp += a_v * (ay - fylp);
+        }
         if (v_ok) {
             double vx_, vy_, vz_;
             if (vok_prev != 0.0) dvdt += a_v * ((v - vprev) * fs - dvdt);
             vprev = v;
-            /* IMU velocity u = (v, 0, 0) + w x d, d = -r_v; acceleration u' + w x u */
-            vx_ = v + wy * dz - wz * dy; vy_ = wz * dx - wx * dz; vz_ = wx * dy - wy * dx;
-            comp_x = dvdt + (wdy * dz - wdz * dy) + (wy * vz_ - wz * vy_);
+            /* a wheel that does not roll on the road: its v' is not what the accelerometer feels */
+            if (fabs(dvdt - fxlp) > slip_a) {
+                slip_t = slip_hold;
+                slipping = 1;
+            } else if (slip_t > 0.0) {
+                slip_t -= h;
+                slipping = slip_t > 0.0;
+            }
+            if (slipping) {
+                /* the vehicle's speed carried on by the IMU's forward acceleration f_x - g (R^T e_z)_x */
+                a_fwd = chk.acc_ok ? ax - g * 2.0 * (lx * lz - lw * ly) : 0.0;
+                vheld += h * a_fwd;
+                vu = vheld;
+                flags |= BISO_EST_FLAG_ACCEL_GATED;
+            } else {
+                vheld = v;
+            }
+            /* IMU velocity u = (v, v_y, 0) + w x d, d = -r_v; acceleration u' + w x u */
+            vx_ = vu + wy * dz - wz * dy; vy_ = wz * dx - wx * dz; vz_ = wx * dy - wy * dx;
+            if (rear_slip != 0.0) {
+                /* the axle's sideslip: slip angle (D_r/g0) f_y (single-track model), outward of the bend */
+                double vy = -rear_slip * fabs(vu) * fylp;
+                if (vok_prev != 0.0) dvydt += a_v * ((vy - vyprev) * fs - dvydt);
+                vyprev = vy;
+                vy_ += vy;
+            }
+            if (slipping)  /* the estimate's own gravity along x: no say in the tilt */
+                comp_x = a_fwd;
+            else
+                comp_x = dvdt + (wdy * dz - wdz * dy) + (wy * vz_ - wz * vy_);
             comp_y = (wdz * dx - wdx * dz) + (wz * vx_ - wx * vz_);
+            if (rear_slip != 0.0) comp_y += dvydt;
             comp_z = (wdx * dy - wdy * dx) + (wx * vy_ - wy * vx_);
             flags |= BISO_EST_FLAG_ACCEL_COMPENSATED;
         }
@@ -477,7 +522,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                              + (wl[2] - b.bz) * (wl[2] - b.bz);
                 still = rw2 < thr * thr;
             }
-            if (v_ok) still = still && fabs(v) < rest_v;
+            if (v_ok) still = still && fabs(vu) < rest_v;
             rest_t = still ? rest_t + h : 0.0;
             rest = rest_t >= rest_n;
         }
@@ -675,6 +720,8 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         st[S(HEADING_START_S)] = head_t; st[S(TILT_CORR_START)] = tcx; st[S(TILT_CORR_START) + 1] = tcy;
         st[S(FIELD_DIP_CS)] = dipc; st[S(FIELD_DIP_CS) + 1] = dips;
         st[S(TIME_S)] = t;
+        st[S(SPEED_SLIP_S)] = slip_t; st[S(SPEED_HELD)] = vheld; st[S(FORWARD_ACCEL_LP)] = fxlp;
+        st[S(LATERAL_ACCEL_LP)] = fylp; st[S(LATERAL_SPEED_PREV)] = vyprev; st[S(LATERAL_DVDT)] = dvydt;
         out->q_wb[0] = q.w; out->q_wb[1] = q.x; out->q_wb[2] = q.y; out->q_wb[3] = q.z;
         out->flags = flags;
         out->gyro_bias_b[0] = b.bx; out->gyro_bias_b[1] = b.by; out->gyro_bias_b[2] = b.bz;

@@ -376,6 +376,18 @@ static const biso_est_param params_biso_plus[] = {
      "low-pass of v\314\207 and \317\211\314\207 from differences",
      "measured",
      BISO_EST_REAL, 0, 1, 0x1.999999999999ap-5, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"speed_slip_accel_mps2", "a_s", "m/s\302\262", "m/s2",
+     "wheel slip: the largest difference between the speed input's v\314\207 and the accelerometer's forward specific force f_x (both low-passed, \317\204_v) while the wheel rolls on the road (gravity along the vehicle's x on a slope, g sin \316\270, and the lever-arm terms). Beyond it the speed is not the vehicle's (a wheel unloaded over a bump, spun up by the drive torque or pulled back to the road's speed when it lands; a locked wheel): until t_s after the last such sample the vehicle's speed is carried on by the accelerometer's forward acceleration (the estimate's gravity removed), which then has no say in the tilt (flag ACCEL_GATED)",
+     "g sin 18\302\260 (a 32 % grade, steeper than public roads); measured (docs/vehicle.md, rough_road)",
+     BISO_EST_REAL, 0, 1, 0x1.8000000000000p+1, 0.0, HUGE_VAL, 1, NULL, 0},
+    {"speed_slip_hold_s", "t_s", "s", "s",
+     "how long after the last sample beyond a_s the speed input stays unused for v\314\207 (the wheel's spin-up and landing settle)",
+     "measured: 0.25-1 s alike (docs/vehicle.md)",
+     BISO_EST_REAL, 0, 1, 0x1.0000000000000p-1, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"rear_slip_gradient_rad_per_g", "D_r", "rad", "rad",
+     "slip angle of the axle at r_v per g of lateral specific force: the point's velocity is taken as (v, \342\210\222(D_r/g\342\202\200) |v| f_y, 0) in body axes, f_y the accelerometer's lateral specific force low-passed (\317\204_v), instead of (v, 0, 0); 0: the point does not slide sideways (kinematic steering)",
+     "steady-state single-track model, \316\261_r = W_r/C_\316\261r per g (Gillespie 1992, ch. 6): the axle's load over its cornering stiffness; the reference car's rear axle with magic_formula tyres 0.078 (4.45 \302\260/g; 4.6-4.9 \302\260/g on the ISO 4138 circle, docs/vehicle.md)",
+     BISO_EST_REAL, 0, 1, 0.0, 0.0, HUGE_VAL, 0, NULL, 0},
     {"gravity_mps2", "g", "m/s\302\262", "m/s2",
      "gravity used by the gate",
      "",
@@ -389,7 +401,7 @@ static const biso_est_param params_biso_plus[] = {
      "PS-MPU-9250A-01 \302\2473.2 (\302\2612\342\200\246\302\26116 g)",
      BISO_EST_REAL, 1, 1, NAN, 0.0, HUGE_VAL, 1, NULL, 0},
 };
-static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43};
+static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46};
 
 const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
     {"biso", "faithful BISO: Poisson equation with cross-linked positional correction (Aleshkin et al. 2024, reading D)",
@@ -406,5 +418,5 @@ const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
      params_dcm_pi, family_index_dcm_pi, 9, NULL, 0},
     {"biso_plus", "BISO family for vehicles: gyro-bias estimation, acceleration compensation from speed, gating, magnetic disturbance detection, unbiased cross-link",
      BISO_EST_FAMILY_BISO_PLUS, BISO_EST_INPUT_SPEED_MPS | BISO_EST_INPUT_IMU_FLAGS, 1,
-     params_biso_plus, family_index_biso_plus, 44, NULL, 0},
+     params_biso_plus, family_index_biso_plus, 47, NULL, 0},
 };
