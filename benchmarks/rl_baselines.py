@@ -127,8 +127,20 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
 
 
 def evaluate(model, vec, env, seeds):
+    """Mean return of the deterministic policy over the seeds, and the last info of each episode."""
     policy = lambda obs: model.predict(vec.normalize_obs(obs[None]), deterministic=True)[0][0]  # noqa: E731
-    return float(np.mean([episode_return(env, policy, s)[0] for s in seeds]))
+    runs = [episode_return(env, policy, s) for s in seeds]
+    return float(np.mean([r[0] for r in runs])), [r[2] for r in runs]
+
+
+def evaluation_rows(name, label, mean, infos):
+    """The table's rows of a trained policy: its mean return, and for Driving the episodes
+    finished and the distance driven along the route per seed."""
+    rows = {label: mean}
+    if name == "Driving":
+        rows[f"  ({label.split()[0]} finished)"] = f"{sum(i['finished'] for i in infos)}/{len(infos)}"
+        rows[f"  ({label.split()[0]} distance m per seed)"] = " ".join(f"{i['distance_m']:.0f}" for i in infos)
+    return rows
 
 
 def main():
@@ -139,6 +151,8 @@ def main():
     parser.add_argument("--seeds", type=int, default=5, help="evaluation episodes (seeds 1000, 1001, ...)")
     parser.add_argument("--speed-steps", type=int, default=4096, help="steps of the steps/s measurement (0: none)")
     parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--load-dir", default=None, help="evaluate the models saved there by --save-dir "
+                                                         "(checkpoints included) instead of training")
     parser.add_argument("--curve-rows", type=int, default=10, help="rows of the learning curve over the budget")
     parser.add_argument("--save-dir", default=None, help="directory for the trained models (<env>_<algo>.zip and "
                                                          "its VecNormalize <env>_<algo>_vecnormalize.pkl)")
@@ -159,6 +173,20 @@ def main():
                 print(f"  PPO training steps/s with {n} environment(s): {rate:.0f}", flush=True)
         rows = baselines(name, env, seeds)
         for algo in args.algos:
+            if args.load_dir:  # evaluate a saved model (a checkpoint of an earlier run) instead of training
+                import pathlib
+
+                from stable_baselines3 import PPO, SAC
+                from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+                source = pathlib.Path(args.load_dir)
+                model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
+                vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
+                                        DummyVecEnv([lambda: gym.make(ENVS[name])]))
+                vec.training = False
+                label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
+                rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
+                continue
             save = None
             if args.save_dir:
                 import pathlib
@@ -176,7 +204,8 @@ def main():
             print(f"  {algo.upper()} learning curve (steps: mean training return over the episodes since the last row):")
             for steps, mean, count in curve:
                 print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")
-            rows[f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"] = evaluate(model, vec, env, seeds)
+            label = f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"
+            rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
         for label, value in rows.items():
             shown = value if isinstance(value, str) else f"{value:.1f}"
             print(f"  {label:<48} {shown:>10}", flush=True)
