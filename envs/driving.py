@@ -90,8 +90,9 @@ class DrivingEnv(CosimEnv, EzPickle):
       min(|e| / `max_cross_track_m`, 1), e the cross-track error: the fraction of the step's
       forward progress lost for driving off the centre line, all of it (with the default
       weight 1) at the edge of the road. It is zero when the car does not progress and never
-      larger than the progress term: each step's reward lies between −w·|Δs| and w·Δs, and
-      standing still earns exactly 0, dawdling little, driving along the centre line the most;
+      larger than the progress term: the one-off penalties aside, a step earns w·Δs when Δs ≤ 0
+      and between 0 and w·Δs otherwise (w = `progress_weight`), so standing still earns
+      exactly 0, dawdling little, driving along the centre line the most;
     - *reward_rollover:* −`rollover_penalty` when the car tilts past `rollover_tilt_rad`;
     - *reward_off_route:* −`off_route_penalty` when |e| exceeds `max_cross_track_m`.
 
