@@ -63,18 +63,18 @@ def baselines(name, env, seeds):
         am = AccelMagAttitude(env)
         out["accel+mag attitude (memoryless)"] = np.mean([episode_return(env, am, s, am.reset)[0] for s in seeds])
     elif name == "GainTuning":
-        from biso_cosim.envs.gain_oracle import episode_errors, oracle_action
+        from biso_cosim.envs.gain_oracle import episode_errors
 
         paper = paper_gains(env)
         out["info baseline: paper gains"] = np.mean([episode_return(env, lambda o: paper, s)[0] for s in seeds])
         oracle, grid_errors = [], []
         axis = np.linspace(-1.0, 1.0, 9)
         grid = [np.array([a, b]) for a in axis for b in axis]
-        for s in seeds:
-            best, _ = oracle_action(env, s)
+        for s in seeds:  # (the grid of gain_oracle.oracle_action without refinement, one co-simulation per seed)
+            grid_errors.append(episode_errors(env, s, grid))
+            best = grid[int(np.argmin(grid_errors[-1]))].astype(np.float32)
             oracle.append(episode_return(env, lambda o: best, s)[0])
             print(f"    oracle seed {s}: {env.unwrapped.params_from_action(best)}", flush=True)
-            grid_errors.append(episode_errors(env, s, grid))
         out["oracle: best constant gains per episode"] = np.mean(oracle)
         single = grid[int(np.argmin(np.mean(grid_errors, axis=0)))]
         print(f"    best single constant: {env.unwrapped.params_from_action(single)}", flush=True)
@@ -87,8 +87,9 @@ def baselines(name, env, seeds):
     return out
 
 
-def train(name, algo, timesteps, seed, n_envs=1):
-    """A trained model, its VecNormalize and the learning curve [(steps, mean return, episodes)]."""
+def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
+    """A trained model, its VecNormalize and the learning curve [(steps, mean return, episodes)]:
+    ``rows`` rows over the budget; ``checkpoint(model, vec)`` is called at each row."""
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.env_util import make_vec_env
@@ -99,7 +100,7 @@ def train(name, algo, timesteps, seed, n_envs=1):
     # one thread: on a shared 2-core machine torch's second intra-op thread only spins
     torch.set_num_threads(1)
     curve, returns = [], []
-    chunk = max(timesteps // 10, 1)
+    chunk = max(timesteps // rows, 1)
 
     class Curve(BaseCallback):
         def _on_step(self) -> bool:
@@ -111,6 +112,8 @@ def train(name, algo, timesteps, seed, n_envs=1):
                 returns.clear()
                 steps, mean, count = curve[-1]
                 print(f"    ({name} {algo}) {steps:>8}: {mean:10.1f}  ({count} episodes)", flush=True)
+                if checkpoint is not None:
+                    checkpoint(self.model, self.model.get_env())
             return True
 
     vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
@@ -124,8 +127,20 @@ def train(name, algo, timesteps, seed, n_envs=1):
 
 
 def evaluate(model, vec, env, seeds):
+    """Mean return of the deterministic policy over the seeds, and the last info of each episode."""
     policy = lambda obs: model.predict(vec.normalize_obs(obs[None]), deterministic=True)[0][0]  # noqa: E731
-    return float(np.mean([episode_return(env, policy, s)[0] for s in seeds]))
+    runs = [episode_return(env, policy, s) for s in seeds]
+    return float(np.mean([r[0] for r in runs])), [r[2] for r in runs]
+
+
+def evaluation_rows(name, label, mean, infos):
+    """The table's rows of a trained policy: its mean return, and for Driving the episodes
+    finished and the distance driven along the route per seed."""
+    rows = {label: mean}
+    if name == "Driving":
+        rows[f"  ({label.split()[0]} finished)"] = f"{sum(i['finished'] for i in infos)}/{len(infos)}"
+        rows[f"  ({label.split()[0]} distance m per seed)"] = " ".join(f"{i['distance_m']:.0f}" for i in infos)
+    return rows
 
 
 def main():
@@ -136,11 +151,16 @@ def main():
     parser.add_argument("--seeds", type=int, default=5, help="evaluation episodes (seeds 1000, 1001, ...)")
     parser.add_argument("--speed-steps", type=int, default=4096, help="steps of the steps/s measurement (0: none)")
     parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--load-dir", default=None, help="evaluate the models saved there by --save-dir "
+                                                         "(checkpoints included) instead of training")
+    parser.add_argument("--curve-rows", type=int, default=10, help="rows of the learning curve over the budget")
     parser.add_argument("--save-dir", default=None, help="directory for the trained models (<env>_<algo>.zip and "
                                                          "its VecNormalize <env>_<algo>_vecnormalize.pkl)")
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
+    if args.curve_rows < 1:
+        parser.error("--curve-rows must be >= 1")
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
     table = []
     for name in args.envs:
@@ -153,18 +173,39 @@ def main():
                 print(f"  PPO training steps/s with {n} environment(s): {rate:.0f}", flush=True)
         rows = baselines(name, env, seeds)
         for algo in args.algos:
-            model, vec, curve, rate = train(name, algo, args.timesteps, args.seed)
+            if args.load_dir:  # evaluate a saved model (a checkpoint of an earlier run) instead of training
+                import pathlib
+
+                from stable_baselines3 import PPO, SAC
+                from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+                source = pathlib.Path(args.load_dir)
+                model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
+                vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
+                                        DummyVecEnv([lambda: gym.make(ENVS[name])]))
+                vec.training = False
+                label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
+                rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
+                continue
+            save = None
             if args.save_dir:
                 import pathlib
 
                 out = pathlib.Path(args.save_dir)
                 out.mkdir(parents=True, exist_ok=True)
-                model.save(out / f"{name}_{algo}.zip")
-                vec.save(str(out / f"{name}_{algo}_vecnormalize.pkl"))
+
+                def save(model, vec, name=name, algo=algo, out=out):  # (at each row of the curve, and at the end)
+                    model.save(out / f"{name}_{algo}.zip")
+                    vec.save(str(out / f"{name}_{algo}_vecnormalize.pkl"))
+
+            model, vec, curve, rate = train(name, algo, args.timesteps, args.seed, rows=args.curve_rows, checkpoint=save)
+            if save is not None:
+                save(model, vec)
             print(f"  {algo.upper()} learning curve (steps: mean training return over the episodes since the last row):")
             for steps, mean, count in curve:
                 print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")
-            rows[f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"] = evaluate(model, vec, env, seeds)
+            label = f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"
+            rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
         for label, value in rows.items():
             shown = value if isinstance(value, str) else f"{value:.1f}"
             print(f"  {label:<48} {shown:>10}", flush=True)

@@ -328,7 +328,60 @@ def test_driving_the_route_earns_its_length():
             break
     assert terminated and info["finished"] and not info["off_route"]
     assert terms["reward_progress"] == pytest.approx(route.path.length_m, abs=1.5)
-    assert -0.5 < terms["reward_cross_track"] <= 0.0 and terms["reward_rollover"] == terms["reward_off_route"] == 0.0
+    # on the centre line within centimetres: a few hundredths of the progress lost
+    assert -0.02 * route.path.length_m < terms["reward_cross_track"] <= 0.0
+    assert terms["reward_rollover"] == terms["reward_off_route"] == 0.0
+
+
+def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
+    """reward_cross_track = -max(Δs, 0) × min(|e| / max_cross_track_m, 1) for the default
+    weights: never larger than the step's progress, zero when the car does not progress."""
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), max_cross_track_m=3.0)
+    _, info = env.reset(seed=0)
+    before, seen = info["distance_m"], 0
+    while True:  # drift off to the left until the road ends
+        _, reward, terminated, truncated, info = env.step(np.array([0.3, 0.08]))
+        gained = info["distance_m"] - before
+        before = info["distance_m"]
+        assert info["reward_progress"] == gained
+        expected = -max(gained, 0.0) * min(abs(info["cross_track_m"]) / 3.0, 1.0)
+        assert info["reward_cross_track"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        assert abs(info["reward_cross_track"]) <= max(info["reward_progress"], 0.0)
+        seen += abs(info["cross_track_m"]) > 1.5 and gained > 0.0
+        if terminated or truncated:
+            break
+    assert terminated and info["off_route"] and seen > 10  # (far off centre for a while before the edge)
+
+
+def test_standing_still_earns_nothing_and_the_stalled_episode_is_truncated():
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), stall_s=2.0)
+    env.reset(seed=0)
+    steps = 0
+    while True:
+        _, reward, terminated, truncated, info = env.step(np.array([-1.0, 0.3]))  # braked, wheel turned
+        steps += 1
+        assert abs(reward) < 1e-6 and abs(info["reward_cross_track"]) < 1e-6  # (the braked car settles by µm)
+        if terminated or truncated:
+            break
+    assert truncated and not terminated and info["stalled"] and steps == round(2.0 / env.unwrapped.dt)
+
+
+def test_a_car_that_drives_is_never_stalled():
+    env = gym.make("biso_cosim/Driving-v0", route=straight_route(60.0), pose_source="truth", stall_s=1.0)
+    obs, _ = env.reset(seed=0)
+    while True:
+        obs, reward, terminated, truncated, info = env.step(pursue(env, obs))
+        if terminated or truncated:
+            break
+    assert terminated and info["finished"] and not info["stalled"]
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    ({"cross_track_weight": 1.5}, "cross_track_weight"), ({"cross_track_weight": -0.1}, "cross_track_weight"),
+    ({"stall_s": 0.0}, "stall_s"), ({"stall_s": -1.0}, "stall_s")])
+def test_bad_reward_settings_are_refused(arguments, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("biso_cosim/Driving-v0", **arguments)
 
 
 def test_leaving_the_road_ends_the_episode_with_its_penalty():
