@@ -46,7 +46,7 @@ def test_the_progressive_criterion_refuses_a_breakaway():
     def point(v, ay, beta_rear):
         return SteadyPoint(target_speed_mps=v, speed_mps=v, yaw_rate_rad_s=ay * 9.80665 / v, lateral_accel_g=ay,
                            steer_rad=0.07 + 0.05 * ay, road_wheel_rad=0.07, radius_m=40.0, sideslip_cg_deg=0.0,
-                           sideslip_rear_axle_deg=beta_rear, steady=True)
+                           sideslip_rear_axle_deg=beta_rear, roll_deg=4.5 * ay, steady=True)
 
     held = [point(16.0, 0.64, -3.4), point(18.0, 0.78, -4.6)]
     trend = -4.6 + (-4.6 + 3.4) / (0.78 - 0.64) * (0.88 - 0.78)

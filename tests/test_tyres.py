@@ -240,6 +240,18 @@ def test_steady_circle_understeer_and_sideslip(circle_points):
     assert lo <= command["understeer_gradient_deg_per_g"] <= hi
 
 
+def test_the_roll_gradient_is_the_cars_documented_value(circle_points):
+    """The body rolls outward in proportion to the lateral acceleration, by the car's
+    documented 4.5 °/g (springs and anti-roll bars, car.xml): the slip tyres change where
+    the lateral force builds, not the roll stiffness that resists its moment."""
+    from biso_cosim.vehicle.handling import PUBLISHED, understeer_fit
+
+    fit = understeer_fit(circle_points, vehicle_parameters()["wheelbase_m"], linear_limit_g=0.55)
+    (lo, hi), _ = PUBLISHED["roll_gradient_deg_per_g"]
+    assert lo <= fit["roll_gradient_deg_per_g"] <= hi
+    assert all(p.roll_deg > 0.0 for p in circle_points)  # outward: right side down in this left turn
+
+
 def bicycle_step_response(mass, iz, a, b, c_f, c_r, v, times, steer, sigma, dt=1e-4):
     """The linear bicycle model (Gillespie 1992, ch. 6) with axle cornering stiffnesses c_f,
     c_r, each axle's force lagging its steady value c·α by the tyres' relaxation length sigma

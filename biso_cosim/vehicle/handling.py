@@ -54,6 +54,8 @@ PUBLISHED = {
                                       "steering-wheel angle over the steering ratio, δ − L/R against a_y)"),
     "max_lateral_accel_g": ((0.8, 0.9), "commonly quoted steady-state limit of passenger cars on summer tyres, "
                             "dry asphalt (not checked against a single source)"),
+    "roll_gradient_deg_per_g": ((4.0, 5.0), "this car's documented value, about 4.5 °/g from its springs and "
+                                "anti-roll bars (car.xml header), kept with either tyre model"),
     "stopping_distance_100_m": ((34.0, 40.0), "magazine braking tests (ADAC, auto motor und sport) of compact cars "
                                 "of the class from 100 km/h on dry asphalt, with ABS"),
 }
@@ -92,6 +94,8 @@ class SteadyPoint:
     radius_m: float
     sideslip_cg_deg: float
     sideslip_rear_axle_deg: float
+    roll_deg: float
+    """the body's roll angle (ISO 8855: positive right side down, outward in a left turn)"""
     steady: bool
     """True if the speed and the yaw rate held (std below 2 % of their means)."""
 
@@ -108,6 +112,7 @@ def _body_velocity(truth) -> np.ndarray:
 def steady_circle(speed_mps: float, *, radius_m: float = 40.0, tyres: str = "magic_formula",
                   settle_s: float = 8.0, window_s: float = 6.0) -> SteadyPoint:
     """One constant-speed run on the circle; the steady state over the last ``window_s``."""
+    from biso_cosim.frames import euler_from_quat
     from biso_cosim.vehicle.driver import DriverCommand
     from biso_cosim.vehicle.sim import Truth, VehicleSim
 
@@ -157,12 +162,12 @@ def steady_circle(speed_mps: float, *, radius_m: float = 40.0, tyres: str = "mag
         road_wheel_rad=float(np.mean(truth.steer_rad[last])), radius_m=speed / r,
         sideslip_cg_deg=math.degrees(float(np.mean(np.arctan2(v_cg[:, 1], v_cg[:, 0])))),
         sideslip_rear_axle_deg=math.degrees(float(np.mean(np.arctan2(v_axle[:, 1], v_axle[:, 0])))),
-        steady=steady)
+        roll_deg=math.degrees(float(np.mean(euler_from_quat(truth.q_wb[last])[:, 0]))), steady=steady)
 
 
 def understeer_fit(points: list[SteadyPoint], wheelbase_m: float, linear_limit_g: float = 0.4, *,
                    road_wheel: bool = False) -> dict[str, float]:
-    """ISO 4138: slopes of δ − L/R and of β against a_y/g (least squares over the steady
+    """ISO 4138: slopes of δ − L/R, of β and of the roll angle against a_y/g (least squares over the steady
     points with a_y ≤ ``linear_limit_g``), in °/g; δ the steering command (the steering-wheel
     angle over the ratio, ISO 4138's), or with ``road_wheel`` the road wheels' angle (the
     tyres' share alone, without the compliance steer)."""
@@ -172,8 +177,10 @@ def understeer_fit(points: list[SteadyPoint], wheelbase_m: float, linear_limit_g
     ay = np.array([p.lateral_accel_g for p in use])
     excess = np.degrees([(p.road_wheel_rad if road_wheel else p.steer_rad) - wheelbase_m / p.radius_m for p in use])
     beta = np.array([p.sideslip_cg_deg for p in use])
+    roll = np.array([p.roll_deg for p in use])
     return {"understeer_gradient_deg_per_g": float(np.polyfit(ay, excess, 1)[0]),
             "sideslip_gradient_deg_per_g": float(np.polyfit(ay, beta, 1)[0]),
+            "roll_gradient_deg_per_g": float(np.polyfit(ay, roll, 1)[0]),
             "points_in_fit": len(use)}
 
 
@@ -376,7 +383,8 @@ def report_markdown(result: dict) -> str:
     f = result["figures"]
     rows = [f"# Handling ({result['tyres']} tyres), `biso-cosim vehicle handling`", "",
             "| figure | measured | class (published) | within | source |", "|---|---|---|---|---|"]
-    units = {"understeer_gradient_deg_per_g": "°/g", "max_lateral_accel_g": "g", "stopping_distance_100_m": "m"}
+    units = {"understeer_gradient_deg_per_g": "°/g", "max_lateral_accel_g": "g", "roll_gradient_deg_per_g": "°/g",
+             "stopping_distance_100_m": "m"}
     for key, ((lo, hi), source) in PUBLISHED.items():
         value = f[key]
         ok = "yes" if lo <= value <= hi else "**no**"
@@ -397,7 +405,7 @@ def report_markdown(result: dict) -> str:
              f"{cost['magic_formula_us_per_step']:.1f} µs with the Magic Formula plugin "
              f"({cost['ratio'] - 1.0:+.1%}; best of 7 interleaved timings of 5000 steps, on this machine now).",
              "", f"ISO 4138 constant radius {result['radius_m']:g} m; understeer and sideslip gradients fitted "
-             f"over a_y ≤ 0.4 g ({f['points_in_fit']} points).", "",
+             f"over a_y ≤ 0.4 g ({f['points_in_fit']} points); the roll gradient over the same points.", "",
              "| target speed m/s | a_y g | steer (command) rad | road wheels rad | radius m | β at CG ° | "
              "β at rear axle ° | steady |",
              "|---|---|---|---|---|---|---|---|"]
