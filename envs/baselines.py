@@ -71,8 +71,7 @@ class PursuitDriver:
 def paper_gains(env: Any) -> np.ndarray:
     """GainTuning-v0's constant action for the gains its baseline copy runs with (the
     paper's, for BISO): the normalised action of the baseline's tuned values, clipped."""
-    core = env.unwrapped
-    return np.clip(core._initial_gains, -1.0, 1.0).astype(np.float32)
+    return np.clip(env.unwrapped.baseline_action, -1.0, 1.0).astype(np.float32)
 
 
 class AccelMagAttitude:

@@ -28,7 +28,7 @@ def episode_errors(env: Any, seed: int, actions: Sequence[np.ndarray]) -> np.nda
     core = env.unwrapped
     _, info = env.reset(seed=seed)
     fixed = dict(core.estimator_params)
-    specs = [EstimatorSpec(core.estimator, {**fixed, **core._changes(core.params_from_action(a))}, label=f"a{i}")
+    specs = [EstimatorSpec(core.estimator, {**fixed, **core.estimator_changes(core.params_from_action(a))}, label=f"a{i}")
              for i, a in enumerate(actions)]
     sim = CoSimulation(core.route, duration_s=core.sim.duration_s, seed=info["sensor_seed"], estimators=specs,
                        sensor_profile=core.sim.imu.profile, registers=core.sim.registers,

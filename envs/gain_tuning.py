@@ -273,7 +273,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     def _check_corners(self, fixed: dict[str, Any]) -> None:
         """Every corner of the tuning box must be a valid estimator (e.g. stable gains)."""
         for corner in itertools.product((-1.0, 1.0), repeat=len(self.tuning)):
-            changes = self._changes(self.params_from_action(np.array(corner)))
+            changes = self.estimator_changes(self.params_from_action(np.array(corner)))
             try:
                 make_estimator(self.estimator, self.imu_rate_hz, **{**fixed, **changes})
             except (ValueError, TypeError) as exc:
@@ -305,6 +305,12 @@ class GainTuningEnv(CosimEnv, EzPickle):
         return profile.replace(name=f"{profile.name}@{t:.2f}C", temperature__default=t)
 
     # ------------------------------------------------------------------ conversions
+    @property
+    def baseline_action(self) -> np.ndarray:
+        """The normalised action of the baseline copy's own values of what the action sets (the
+        paper's gains for BISO); outside [-1, 1] where those lie outside the action's range."""
+        return self._initial_gains.copy()
+
     def params_from_action(self, action: Any) -> dict[str, float]:
         """The physical parameter values a normalised action stands for."""
         return self._values(np.asarray(action, dtype=float).tolist())
@@ -331,8 +337,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
             a[i] = 2.0 * u - 1.0
         return a
 
-    def _changes(self, values: dict[str, float]) -> dict[str, Any]:
-        """Estimator parameter changes for tuned values (the cross-link ratio becomes k, k_p)."""
+    def estimator_changes(self, values: dict[str, float]) -> dict[str, Any]:
+        """The estimator's parameter changes for tuned values (``params_from_action``'s; the
+        cross-link ratio becomes k, k_p)."""
         changes = dict(values)
         if CROSS_LINK_RATIO in changes:
             ratio = changes.pop(CROSS_LINK_RATIO)
@@ -390,7 +397,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         the k and k_p derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
         tuned = self._sim.estimators["tuned"]
-        changes = self._changes(values)
+        changes = self.estimator_changes(values)
         tuned.retune(**changes)
         if "k" in changes:
             values.update(k=changes["k"], k_p=changes["k_p"])

@@ -558,4 +558,4 @@ def test_gain_oracle_lies_inside_the_range_and_beats_the_paper():
     for seed in (1000, 1001, 1002):
         best, error = oracle_action(env, seed)
         assert -1.0 < best[0] < 1.0, seed  # f_c inside its range
-        assert error < episode_errors(env, seed, [env.unwrapped._initial_gains])[0]
+        assert error < episode_errors(env, seed, [env.unwrapped.baseline_action])[0]
