@@ -27,7 +27,8 @@ from typing import Any, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_RECEIVER,
+from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_FIXES,
+                             NO_RECEIVER,
                              SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan, PeriodSamples,
                              PeriodWork, PhysicsRows, SampleOutputs, SensorArrays, TruthArrays, loop_kernel, prepare,
                              sensor_inputs)
@@ -162,16 +163,6 @@ class EstimatorSpec:
     @property
     def key(self) -> str:
         return self.label or self.name
-
-
-def _gyro_step(est: Any):
-    """The coning algorithm an estimator's ``gyro_step`` parameter names, or None."""
-    params = getattr(est, "params", None)
-    if "dtheta_b" not in getattr(est, "inputs", ()) or getattr(params, "gyro_step", "hold") == "hold":
-        return None
-    from biso_cosim.strapdown.algorithms import get_algorithm
-
-    return get_algorithm("coning", params.gyro_step)
 
 
 class _UserEstimator:
@@ -426,21 +417,16 @@ class CoSimulation:
             else:
                 subs.add(setup.rows_dtheta)
             self.navigator_params[label] = params
-        # estimators whose gyro step is a coning algorithm take the same increments (input dtheta_b)
-        self._dtheta_forms: dict[str, tuple[str, int]] = {}
-        for key, est in self.estimators.items():
-            step = _gyro_step(est)
-            if step is None:
+        # estimators that declare gyro increments (input dtheta_b: BISO's coning-algorithm gyro_step) take them
+        # from the same stream
+        for est in self.estimators.values():
+            wanted = getattr(est, "gyro_increments", None)
+            if wanted is None:
                 continue
-            if step.form == "multiple":
-                orders = max(orders, step.m_dtheta)
-                self._dtheta_forms[key] = ("multiple", step.m_dtheta)
-            elif step.m_dtheta == 1:
-                orders = max(orders, 1)
-                self._dtheta_forms[key] = ("multiple", 1)  # the whole interval's increment ΔΘ¹
+            if wanted.form == "multiple":
+                orders = max(orders, wanted.m)
             else:
-                subs.add(step.m_dtheta)
-                self._dtheta_forms[key] = ("sub", step.m_dtheta)
+                subs.add(wanted.m)
         if len(subs) > 1:
             raise ValueError(f"navigators and gyro_step: sub-interval algorithms with different numbers of "
                              f"increments ({sorted(subs)}) cannot share one sensor stream; run them separately")
@@ -619,18 +605,30 @@ class CoSimulation:
         speed = odometry if self._wants_odometry else np.empty(0)
         view = PeriodSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8),
                              flags[:k], speed[:k] if speed.shape[0] else speed, at_samples.packed,
-                             NO_RECEIVER[2].fixes if fix_rows is None else np.ascontiguousarray(fix_rows))
+                             NO_FIXES if fix_rows is None else np.ascontiguousarray(fix_rows),
+                             np.empty((k, 0, 3)) if samples.dtheta is None else samples.dtheta,
+                             np.empty((k, 0, 3)) if samples.dtheta_sub is None else samples.dtheta_sub)
         for work in self._consumers:
             work.kernel(view, tuple(outputs[key].q_wb for key in work.estimates), work.arrays)
 
     @property
     def loop_estimators(self) -> tuple[str, ...]:
         """The estimators the period call runs now (``fast_path``; each declares a
-        ``loop_kernel`` and gives ``loop_arrays``): the others run by ``update`` after it."""
+        ``loop_kernel`` and gives ``loop_arrays``, and the sensor forms the increments it
+        declares): the others run by ``update`` after it."""
         if not self._loop_ready():
             return ()
-        return tuple(key for key, est in self.estimators.items()
-                     if callable(getattr(est, "loop_arrays", None)) and est.loop_arrays(0) is not None)
+        return tuple(key for key, est in self.estimators.items() if self._joins(est) and est.loop_arrays(0) is not None)
+
+    def _joins(self, est: Any) -> bool:
+        """Whether ``est`` may join the period call: it has loop arrays, and the gyro
+        increments it declares are among those the sensor forms (a ``gyro_step`` set after
+        the start is not)."""
+        if not callable(getattr(est, "loop_arrays", None)):
+            return False
+        wanted = getattr(est, "gyro_increments", None)
+        return wanted is None or (wanted.m <= self._increment_orders if wanted.form == "multiple"
+                                  else wanted.m == self._subintervals)
 
     @property
     def _last_truth_row(self) -> Truth | None:
@@ -703,7 +701,7 @@ class CoSimulation:
         period = self._periods.get(key)
         if period is not None and period.versions == self._versions():
             if rows is not None:
-                np.copyto(period.physics.rows, rows)
+                np.copyto(period.physics.source.rows, rows)
             return period
         history = source.history if rows is None else _NO_HISTORY
         rows = source.rows if rows is None else rows.copy()
@@ -711,8 +709,8 @@ class CoSimulation:
         orders, subs = self._increment_orders, self._subintervals
         floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
         bound = flags.shape[0]
-        physics = PhysicsRows(history, source.layout, source.warnings, source.sensordata, rows,
-                              _TRUTH_GATHER if packed_rows else source.gather, float(vehicle.physics_rate_hz))
+        physics = PhysicsRows(source._replace(history=history, rows=rows, gather=_TRUTH_GATHER if packed_rows
+                                              else source.gather), float(vehicle.physics_rate_hz))
         sensor = SensorArrays(*self.imu.loop_arrays(), orders, subs, float(self._imu_t0_s))
         truth = TruthArrays(self.magnetic.earth.field_enu_ut, self._before, np.empty((n, Truth.WIDTH)),
                             np.empty((bound, Truth.WIDTH)), float(vehicle.index.wheel_radius_m),
@@ -720,7 +718,7 @@ class CoSimulation:
         outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
         in_loop = []
         for label, est in self.estimators.items():
-            arrays = est.loop_arrays(bound) if callable(getattr(est, "loop_arrays", None)) else None
+            arrays = est.loop_arrays(bound) if self._joins(est) else None
             if arrays is not None:
                 in_loop.append((label, est, arrays))
         index = {label: arrays for label, _, arrays in in_loop}
@@ -833,9 +831,9 @@ class CoSimulation:
                 if imu_flags is None:
                     imu_flags = samples.flags.astype(np.int64)
                 extra["imu_flags"] = imu_flags
-            if key in self._dtheta_forms:  # increments for a coning-algorithm gyro step
-                form, m = self._dtheta_forms[key]
-                extra["dtheta_b"] = np.ascontiguousarray(samples.dtheta[:, :m] if form == "multiple"
+            wanted = getattr(est, "gyro_increments", None)
+            if wanted is not None:  # (a coning-algorithm gyro step's)
+                extra["dtheta_b"] = np.ascontiguousarray(samples.dtheta[:, :wanted.m] if wanted.form == "multiple"
                                                          else samples.dtheta_sub)
             if isinstance(est, Estimator):  # the samples of our own sensor: checked once (see there)
                 outputs[key] = est._update_prechecked(samples.gyro_b, samples.accel_b, samples.mag_b, extra)

@@ -18,7 +18,7 @@ from typing import Any, Callable, ClassVar, Mapping, NamedTuple
 
 import numpy as np
 
-__all__ = ["Estimate", "State", "Estimator", "param", "param_table", "param_markdown", "as_samples",
+__all__ = ["Estimate", "State", "Estimator", "GyroIncrements", "param", "param_table", "param_markdown", "as_samples",
            "as_series", "as_imu_flags", "layout_offsets", "gyro_range_param", "accel_range_param",
            "saturation_limits", "INPUTS"]
 
@@ -286,6 +286,17 @@ def as_quaternion(name: str, value: Any) -> np.ndarray:
     return q / n
 
 
+class GyroIncrements(NamedTuple):
+    """The gyro increments an estimator's input ``dtheta_b`` takes (``Estimator.gyro_increments``):
+    ``form`` "multiple", the multiple integrals ΔΘ¹..ΔΘ^m over each sample interval, or "sub",
+    its m sub-interval increments (``ImuSamples.dtheta`` / ``dtheta_sub``; in the period call
+    ``biso_cosim.loop.PeriodSamples.dtheta_b`` / ``dtheta_sub_b``, of which an in-loop kernel
+    reads the first m rows)."""
+
+    form: str
+    m: int
+
+
 class LoopArrays(NamedTuple):
     """An estimator's arrays in the period call (``Estimator.loop_arrays``): coefficients,
     state, and the outputs q_wb (bound, 4), flags (bound,) int64, gyro_bias_b (bound, 3) or
@@ -520,6 +531,14 @@ class Estimator:
         """The estimate of the first k samples in ``arrays``' outputs (views)."""
         bias = getattr(arrays, "gyro_bias_b", None)
         return Estimate(arrays.q_wb[:k], arrays.flags[:k], bias[:k] if self.estimates_bias else None)
+
+    @property
+    def gyro_increments(self) -> GyroIncrements | None:
+        """The gyro increments the input ``dtheta_b`` takes as the parameters are set now
+        (``GyroIncrements``: form and rows), None when the estimator takes none (none here):
+        the one statement of it, from which the co-simulation asks its MPU-9250 for them,
+        feeds them to ``update`` and to the period call, and the log names their columns."""
+        return None
 
     def _input_requirements(self) -> Any:
         """What of the parameters decides which optional inputs ``update`` accepts and in
