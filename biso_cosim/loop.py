@@ -52,7 +52,8 @@ from biso_cosim.vehicle.sim import HistoryArrays
 from biso_cosim.vehicle._kernels import HISTORY_READ, TRUTH_LAYOUT, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
 __all__ = ["PhysicsRows", "SensorArrays", "SampleOutputs", "TruthArrays", "PeriodSamples", "PeriodWork",
-           "PeriodPlan", "NO_RECEIVER", "NO_FIXES", "loop_kernel", "prepare", "period_samples", "samples_of", "sensor_inputs", "CLOCK_T_START",
+           "PeriodPlan", "NO_RECEIVER", "NO_FIXES", "loop_kernel", "prepare", "period_samples", "samples_of",
+           "sensor_inputs", "CLOCK_T_START",
            "CLOCK_FIRST_STEP", "CLOCK_HAS_BEFORE", "CLOCK_FIXES", "SENSE_OK", "SENSE_POSITION", "SENSE_OUT_OF_STEP",
            "SENSE_RESTEP", "SENSE_RECEIVER"]
 
@@ -154,8 +155,8 @@ class NoReceiver(NamedTuple):
 class PeriodWork(NamedTuple):
     """A consumer's own work after each period (``CoSimulation.attach``): the jitted
     ``kernel(samples, q, arrays)`` on the period's ``PeriodSamples`` (k may be 0), ``q`` the
-    tuple of the ``q_wb`` outputs of the estimators ``estimates`` names (their first k rows), ``arrays`` the consumer's own (a tuple or named tuple, kept
-    as long as it is attached)."""
+    tuple of the ``q_wb`` outputs of the estimators ``estimates`` names (their first k rows),
+    ``arrays`` the consumer's own (a tuple or named tuple, kept as long as it is attached)."""
 
     kernel: Callable
     arrays: Any

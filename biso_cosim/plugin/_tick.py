@@ -33,7 +33,7 @@ __all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compiled
 _FIRST_CLASS = "First-class function type feature is experimental"  # numba's label (see ``compile_plan``)
 
 # ``tick_kernel``'s status (the first of the pair it returns): success (then the number of
-# samples), or the chip's own status (``MPU9250._samples`` reads it; nothing changed), or a
+# samples), or the chip's own status (``MPU9250.sample_views`` reads it; nothing changed), or a
 # code of ``_kernels.BAD_INPUTS`` (then the row; nothing changed)
 TICK_OK, TICK_SENSOR = 0, -1
 
