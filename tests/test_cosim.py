@@ -489,7 +489,7 @@ def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
 def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case, reuse):
     """step() leaves a period's rows in MuJoCo's sensor history for the period kernel; after
     a MuJoCo warning (here a diverged state that MuJoCo resets) the period is stepped again,
-    and a period longer than the history is stepped through ``_step_rows``: either way the
+    and a period longer than the history is stepped through ``VehicleSim.step_rows``: either way the
     numbers of the general path, also from the arguments an environment's periods reuse."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     rate = 4.0 if case == "long_period" else 50.0
