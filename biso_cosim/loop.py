@@ -299,12 +299,11 @@ def samples_of(outputs, sensor, k, speed_mps, truth, fixes):
 
 
 @jit
-def _samples_of(plan, k):
-    """The first k samples of ``plan``'s period and its fixes."""
-    truth = plan.truth
+def _samples_of(outputs, sensor, truth, k, fixes):
+    """The first k samples of a period and its fixes (the plan's records, not the plan: a
+    cached kernel's type must not name the estimators' kernels)."""
     speed = truth.odometry[:k] if truth.odometry.shape[0] else truth.odometry
-    return samples_of(plan.outputs, plan.sensor, k, speed, truth.at[:k],
-                      plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
+    return samples_of(outputs, sensor, k, speed, truth.at[:k], fixes)
 
 
 @jit(cache=False)  # (a plan's type names its kernels: compiled once per process for each set)
@@ -314,7 +313,8 @@ def loop_kernel(plan):
     status, k = _sense(plan.physics, plan.sensor, plan.truth, plan.outputs, plan.clock, plan.receiver)
     if status != SENSE_OK:
         return status, k
-    samples = _samples_of(plan, k)
+    samples = _samples_of(plan.outputs, plan.sensor, plan.truth, k,
+                          plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
     for entry in literal_unroll(plan.estimators):
         entry[0](entry[1], samples)
     for entry in literal_unroll(plan.consumers):
@@ -322,10 +322,10 @@ def loop_kernel(plan):
     return status, k
 
 
-@jit
+@jit(cache=False)  # (as ``loop_kernel``: the plan's type names its kernels)
 def period_samples(plan, k):
     """The first k samples of ``plan``'s last successful call and its fixes (``PeriodSamples``)."""
-    return _samples_of(plan, k)
+    return _samples_of(plan.outputs, plan.sensor, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
 
 
 _COMPILED: set = set()
