@@ -27,10 +27,10 @@ from typing import Any, Iterable, Mapping
 import mujoco
 import numpy as np
 
-from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_RECEIVER,
-                             SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan, PeriodSamples,
-                             PeriodWork, PhysicsRows, SampleOutputs, SensorArrays, TruthArrays, loop_kernel, prepare,
-                             sensor_inputs)
+from biso_cosim.loop import (CLOCK_FIRST_STEP, CLOCK_FIXES, CLOCK_HAS_BEFORE, CLOCK_SIZE, CLOCK_T_START, NO_FIXES,
+                             NO_RECEIVER, SENSE_OK, SENSE_POSITION, SENSE_RECEIVER, SENSE_RESTEP, PeriodPlan,
+                             PeriodSamples, PeriodWork, PhysicsRows, SampleOutputs, SensorArrays, TruthArrays,
+                             loop_kernel, prepare, sensor_inputs)
 from biso_cosim.estimators import Estimate, Estimator, make_estimator
 from biso_cosim.frames import quat_angle_between, wrap_angle
 from biso_cosim.metrics import ANGLES, angle_errors_deg, attitude_angles_deg, error_stats, start_end_difference
@@ -41,7 +41,7 @@ from biso_cosim.vehicle._kernels import _wheel_odometry
 from biso_cosim.vehicle.sim import PHYSICS_STATE, Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
-           "NAVIGATOR_PRESETS", "PeriodWork"]
+           "NAVIGATOR_PRESETS", "PeriodWork", "CONTROLS_APPLIED"]
 
 DEFAULT_SENSOR_PROFILE = "mpu9250_calibrated"
 """A typical MPU-9250 after the usual start-up calibration (see docs/sensors.md)."""
@@ -72,10 +72,10 @@ _NO_HISTORY = np.empty(0)
 # the columns of packed truth rows that ``_pack_rows`` copies when the rows given to the
 # period call are packed truth already (``_sense``: a block of ``run()``): all but the time
 _TRUTH_GATHER = np.arange(1, Truth.WIDTH)
-# ``CoSimulation.step``'s command from a caller that has written the period's controls into
-# MuJoCo's ctrl itself, after checking them (an environment's action, ``Driving-v0``): the
-# period runs as with a DriverCommand of those controls, without making and checking one.
-_CONTROLS_APPLIED = object()
+CONTROLS_APPLIED = object()
+"""``CoSimulation.step``'s command from a caller that has written the period's controls into
+MuJoCo's ctrl itself, after checking them (an environment's action, ``Driving-v0``): the
+period runs as with a DriverCommand of those controls, without making and checking one."""
 
 
 class _Period:
@@ -99,10 +99,10 @@ class _Period:
         view = self.views.get(k)
         if view is None:
             out = self.outputs
-            samples = MPU9250._samples(SENSE_OK, k, (out.floats, out.words, out.status_bytes, out.flags),
-                                       self.increments, self.subintervals)
+            samples = MPU9250.sample_views((out.floats, out.words, out.status_bytes, out.flags), k, self.increments,
+                                           self.subintervals)
             estimates = {key: est.loop_estimate(arrays, k) for key, est, arrays in self.in_loop}
-            view = self.views[k] = (samples, Truth._of(self.truth.at[:k]), estimates)
+            view = self.views[k] = (samples, Truth(self.truth.at[:k]), estimates)
         elif self.per_period:
             for key, est, arrays in self.per_period:
                 view[2][key] = est.loop_estimate(arrays, k)
@@ -111,10 +111,10 @@ class _Period:
     def copy(self, k: int) -> tuple[ImuSamples, Truth, dict[str, Estimate]]:
         """``view(k)`` in arrays of their own (for a caller that keeps them: the log)."""
         out = self.outputs
-        samples = MPU9250._samples(SENSE_OK, k, (out.floats.copy(), out.words.copy(), out.status_bytes.copy(),
-                                                 out.flags.copy()), self.increments, self.subintervals)
+        samples = MPU9250.sample_views((out.floats.copy(), out.words.copy(), out.status_bytes.copy(),
+                                        out.flags.copy()), k, self.increments, self.subintervals)
         estimates = {key: _copied(est.loop_estimate(arrays, k)) for key, est, arrays in self.in_loop}
-        return samples, Truth._of(self.truth.at[:k].copy()), estimates
+        return samples, Truth(self.truth.at[:k].copy()), estimates
 
     def fix_rows(self) -> np.ndarray | None:
         """The fixes of the last call (rows of ``FIX_LAYOUT``; views), None without a receiver."""
@@ -162,16 +162,6 @@ class EstimatorSpec:
     @property
     def key(self) -> str:
         return self.label or self.name
-
-
-def _gyro_step(est: Any):
-    """The coning algorithm an estimator's ``gyro_step`` parameter names, or None."""
-    params = getattr(est, "params", None)
-    if "dtheta_b" not in getattr(est, "inputs", ()) or getattr(params, "gyro_step", "hold") == "hold":
-        return None
-    from biso_cosim.strapdown.algorithms import get_algorithm
-
-    return get_algorithm("coning", params.gyro_step)
 
 
 class _UserEstimator:
@@ -426,21 +416,16 @@ class CoSimulation:
             else:
                 subs.add(setup.rows_dtheta)
             self.navigator_params[label] = params
-        # estimators whose gyro step is a coning algorithm take the same increments (input dtheta_b)
-        self._dtheta_forms: dict[str, tuple[str, int]] = {}
-        for key, est in self.estimators.items():
-            step = _gyro_step(est)
-            if step is None:
+        # estimators that declare gyro increments (input dtheta_b: BISO's coning-algorithm gyro_step) take them
+        # from the same stream
+        for est in self.estimators.values():
+            wanted = getattr(est, "gyro_increments", None)
+            if wanted is None:
                 continue
-            if step.form == "multiple":
-                orders = max(orders, step.m_dtheta)
-                self._dtheta_forms[key] = ("multiple", step.m_dtheta)
-            elif step.m_dtheta == 1:
-                orders = max(orders, 1)
-                self._dtheta_forms[key] = ("multiple", 1)  # the whole interval's increment ΔΘ¹
+            if wanted.form == "multiple":
+                orders = max(orders, wanted.m)
             else:
-                subs.add(step.m_dtheta)
-                self._dtheta_forms[key] = ("sub", step.m_dtheta)
+                subs.add(wanted.m)
         if len(subs) > 1:
             raise ValueError(f"navigators and gyro_step: sub-interval algorithms with different numbers of "
                              f"increments ({sorted(subs)}) cannot share one sensor stream; run them separately")
@@ -514,12 +499,9 @@ class CoSimulation:
             raise ValueError("set_state: the state is from a co-simulation with another set-up (route, seed, "
                              "sensor, estimators, navigators, GNSS or rates); nothing changed")
         v = self.vehicle
-        mujoco.mj_setState(v.model, v.data, state.physics, PHYSICS_STATE)
         # the driver reads the sensor data of the last step, which belongs to that step's start
-        # (docs/design.md §3): restore it as it was rather than recompute it for the current state
-        v.data.sensordata[:] = state.sensordata
-        v._restart_history()
-        v.steps_done = state.steps_done
+        # (docs/design.md §3): restored as it was rather than recomputed for the current state
+        v.restore_physics(state.physics, state.sensordata, state.steps_done)
         v.driver.state = copy.deepcopy(state.driver)
         self.imu.set_state(copy.deepcopy(state.imu))
         if self.gnss_receiver is not None:
@@ -575,11 +557,13 @@ class CoSimulation:
         driver (for agents that drive); the driver still tracks progress along the route, at
         the end of the period: ``vehicle.driver.state`` is then where the step left the car
         (scripted periods record it at their start, where the driver's command is made).
+        ``CONTROLS_APPLIED``: as with a command, the controls the caller wrote into MuJoCo's
+        ctrl (checked by the caller).
         """
         if not self._loop_ready():
             return self._sense(self._drive(command))
         self._command(command)
-        rows, first, t_start = self.vehicle._step_period()  # rows None: still in MuJoCo's sensor history
+        rows, first, t_start = self.vehicle.step_period()  # rows None: still in MuJoCo's sensor history
         self._period_done(command)
         return self._sense_loop(rows, first, t_start)
 
@@ -619,24 +603,36 @@ class CoSimulation:
         speed = odometry if self._wants_odometry else np.empty(0)
         view = PeriodSamples(samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh.view(np.uint8),
                              flags[:k], speed[:k] if speed.shape[0] else speed, at_samples.packed,
-                             NO_RECEIVER[2].fixes if fix_rows is None else np.ascontiguousarray(fix_rows))
+                             NO_FIXES if fix_rows is None else np.ascontiguousarray(fix_rows),
+                             np.empty((k, 0, 3)) if samples.dtheta is None else samples.dtheta,
+                             np.empty((k, 0, 3)) if samples.dtheta_sub is None else samples.dtheta_sub)
         for work in self._consumers:
             work.kernel(view, tuple(outputs[key].q_wb for key in work.estimates), work.arrays)
 
     @property
     def loop_estimators(self) -> tuple[str, ...]:
         """The estimators the period call runs now (``fast_path``; each declares a
-        ``loop_kernel`` and gives ``loop_arrays``): the others run by ``update`` after it."""
+        ``loop_kernel`` and gives ``loop_arrays``, and the sensor forms the increments it
+        declares): the others run by ``update`` after it."""
         if not self._loop_ready():
             return ()
-        return tuple(key for key, est in self.estimators.items()
-                     if callable(getattr(est, "loop_arrays", None)) and est.loop_arrays(0) is not None)
+        return tuple(key for key, est in self.estimators.items() if self._joins(est) and est.loop_arrays(0) is not None)
+
+    def _joins(self, est: Any) -> bool:
+        """Whether ``est`` may join the period call: it has loop arrays, and the gyro
+        increments it declares are among those the sensor forms (a ``gyro_step`` set after
+        the start is not)."""
+        if not callable(getattr(est, "loop_arrays", None)):
+            return False
+        wanted = getattr(est, "gyro_increments", None)
+        return wanted is None or (wanted.m <= self._increment_orders if wanted.form == "multiple"
+                                  else wanted.m == self._subintervals)
 
     @property
     def _last_truth_row(self) -> Truth | None:
         """The newest truth row of the last period (the sample times of the next may reach
         back to it), held in ``_before`` for the period call."""
-        return Truth._of(self._before.copy()) if self._clock[CLOCK_HAS_BEFORE] else None
+        return Truth(self._before.copy()) if self._clock[CLOCK_HAS_BEFORE] else None
 
     @_last_truth_row.setter
     def _last_truth_row(self, row: Truth | None) -> None:
@@ -648,22 +644,22 @@ class CoSimulation:
 
     def _drive(self, command: DriverCommand | None = None) -> Truth:
         """Driver (or the given command) and physics for one control period."""
-        return self.vehicle._truth(*self._drive_rows(command))
+        return self.vehicle.truth_of(*self._drive_rows(command))
 
     def _drive_rows(self, command: DriverCommand | None = None) -> tuple[np.ndarray, int]:
-        """``_drive`` with the physics rows unpacked (``VehicleSim._step_rows``)."""
+        """``_drive`` with the physics rows unpacked (``VehicleSim.step_rows``)."""
         self._command(command)
-        rows = self.vehicle._step_rows()
+        rows = self.vehicle.step_rows()
         self._period_done(command)
         return rows
 
     def _command(self, command: DriverCommand | None) -> None:
         """The controls of the next period: the scripted driver's, or ``command`` (or those
-        in ctrl already: ``_CONTROLS_APPLIED``)."""
+        in ctrl already: ``CONTROLS_APPLIED``)."""
         vehicle = self.vehicle
         if command is None:
-            vehicle._drive()  # the scripted driver (drive() without its command record)
-        elif command is not _CONTROLS_APPLIED:
+            vehicle.apply_driver()  # the scripted driver (drive() without its command record)
+        elif command is not CONTROLS_APPLIED:
             _check_command(command, vehicle.parameters["max_steer_rad"])
             vehicle.apply(command)
 
@@ -703,16 +699,16 @@ class CoSimulation:
         period = self._periods.get(key)
         if period is not None and period.versions == self._versions():
             if rows is not None:
-                np.copyto(period.physics.rows, rows)
+                np.copyto(period.physics.source.rows, rows)
             return period
         history = source.history if rows is None else _NO_HISTORY
         rows = source.rows if rows is None else rows.copy()
         n = rows.shape[0]
         orders, subs = self._increment_orders, self._subintervals
-        floats, words, status_bytes, flags = self.imu._outputs(n, orders, subs)
+        floats, words, status_bytes, flags = self.imu.output_arrays(n, orders, subs)
         bound = flags.shape[0]
-        physics = PhysicsRows(history, source.layout, source.warnings, source.sensordata, rows,
-                              _TRUTH_GATHER if packed_rows else source.gather, float(vehicle.physics_rate_hz))
+        physics = PhysicsRows(source._replace(history=history, rows=rows, gather=_TRUTH_GATHER if packed_rows
+                                              else source.gather), float(vehicle.physics_rate_hz))
         sensor = SensorArrays(*self.imu.loop_arrays(), orders, subs, float(self._imu_t0_s))
         truth = TruthArrays(self.magnetic.earth.field_enu_ut, self._before, np.empty((n, Truth.WIDTH)),
                             np.empty((bound, Truth.WIDTH)), float(vehicle.index.wheel_radius_m),
@@ -720,7 +716,7 @@ class CoSimulation:
         outputs = SampleOutputs(floats, words, status_bytes, flags, np.empty(bound, dtype=np.int64))
         in_loop = []
         for label, est in self.estimators.items():
-            arrays = est.loop_arrays(bound) if callable(getattr(est, "loop_arrays", None)) else None
+            arrays = est.loop_arrays(bound) if self._joins(est) else None
             if arrays is not None:
                 in_loop.append((label, est, arrays))
         index = {label: arrays for label, _, arrays in in_loop}
@@ -749,22 +745,22 @@ class CoSimulation:
         sensor, the truth at its samples, the wheel odometry there, the in-loop estimators
         and the attached work; then what remains in Python (the estimators without a loop
         kernel, GNSS, navigators, the log). The same numbers as the general path, tested.
-        ``rows`` None: the rows of ``VehicleSim._step_period``, begun at ``t_start``, read
+        ``rows`` None: the rows of ``VehicleSim.step_period``, begun at ``t_start``, read
         from MuJoCo's sensor history in the call; ``packed_rows``: ``rows`` are packed truth."""
         period = self._period(rows, packed_rows)
         clock = self._clock
         clock[CLOCK_T_START], clock[CLOCK_FIRST_STEP] = t_start, first_step
         status, k = loop_kernel(period.plan)
         if status == SENSE_RESTEP:  # the history did not hold the rows (nothing changed): the period stepped again
-            return self._sense_loop(self.vehicle._restep(self.vehicle.history_arrays.rows, k), first_step)
-        truth = Truth._of(period.truth.packed)
+            return self._sense_loop(self.vehicle.restep(self.vehicle.history_arrays.rows, k), first_step)
+        truth = Truth(period.truth.packed)
         if status >= 0 or status in (SENSE_POSITION, SENSE_RECEIVER):  # inputs refused, nothing changed: the
             # general path's errors
             return self._sense_general(truth)
         if status != SENSE_OK:  # (-2: raises) or the sensor and the physics out of step (raises)
             out = period.outputs
-            samples = self.imu._samples(status, k, (out.floats, out.words, out.status_bytes, out.flags),
-                                        self._increment_orders, self._subintervals)
+            samples = self.imu.sample_views((out.floats, out.words, out.status_bytes, out.flags), k,
+                                            self._increment_orders, self._subintervals, status=status)
             self._truth_at(samples.t_s, truth)
         samples, at_samples, estimated = period.view(k) if self.reuse_outputs else period.copy(k)
         if (period.consumed and len(estimated) == len(self.estimators) and not self.keep_log
@@ -833,12 +829,12 @@ class CoSimulation:
                 if imu_flags is None:
                     imu_flags = samples.flags.astype(np.int64)
                 extra["imu_flags"] = imu_flags
-            if key in self._dtheta_forms:  # increments for a coning-algorithm gyro step
-                form, m = self._dtheta_forms[key]
-                extra["dtheta_b"] = np.ascontiguousarray(samples.dtheta[:, :m] if form == "multiple"
+            wanted = getattr(est, "gyro_increments", None)
+            if wanted is not None:  # (a coning-algorithm gyro step's)
+                extra["dtheta_b"] = np.ascontiguousarray(samples.dtheta[:, :wanted.m] if wanted.form == "multiple"
                                                          else samples.dtheta_sub)
             if isinstance(est, Estimator):  # the samples of our own sensor: checked once (see there)
-                outputs[key] = est._update_prechecked(samples.gyro_b, samples.accel_b, samples.mag_b, extra)
+                outputs[key] = est.update_prechecked(samples.gyro_b, samples.accel_b, samples.mag_b, extra)
             else:
                 outputs[key] = est.update(samples.gyro_b, samples.accel_b, samples.mag_b, **extra)
         if self.keep_log:

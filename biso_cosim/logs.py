@@ -35,7 +35,7 @@ import numpy as np
 from biso_cosim.metrics import attitude_angles_deg
 from biso_cosim.output import atomic_output
 
-__all__ = ["SENSOR_COLUMNS", "GNSS_COLUMNS", "ODOMETRY_COLUMN", "RunLogInputs", "increment_columns", "increment_form",
+__all__ = ["SENSOR_COLUMNS", "GNSS_COLUMNS", "ODOMETRY_COLUMN", "RunLogInputs", "increment_columns",
            "run_log_inputs", "write_run_log", "read_sensor_csv", "read_log_columns", "read_gnss_fixes", "write_estimates_csv",
            "write_estimates_table"]
 
@@ -72,19 +72,6 @@ def increment_columns(form: str, m: int) -> tuple[str, ...]:
     return tuple(f"dtheta{j}_{a}_{units.get(j, f'rad_s{j - 1}')}" for j in range(1, m + 1) for a in "xyz")
 
 
-def increment_form(est: Any) -> tuple[str, int] | None:
-    """(form, m) of the increments an estimator's ``gyro_step`` integrates, None for 'hold'
-    (or an estimator without increments): a one-row algorithm takes ΔΘ¹ of the whole interval."""
-    params = getattr(est, "params", None)
-    step = getattr(params, "gyro_step", "hold")
-    if "dtheta_b" not in tuple(getattr(est, "inputs", ())) or step == "hold":
-        return None
-    from biso_cosim.strapdown.algorithms import get_algorithm
-
-    alg = get_algorithm("coning", step)
-    return ("multiple", alg.m_dtheta) if alg.form == "multiple" or alg.m_dtheta == 1 else ("sub", alg.m_dtheta)
-
-
 @dataclass
 class RunLogInputs:
     """What a run fed its estimators besides the sensor readings, as its log holds it
@@ -107,7 +94,7 @@ def run_log_inputs(sim, result) -> RunLogInputs:
     their logs with it."""
     out = RunLogInputs()
     n = int(result.t_s.shape[0])
-    forms = {key: increment_form(est) for key, est in sim.estimators.items()}
+    forms = {key: getattr(est, "gyro_increments", None) for key, est in sim.estimators.items()}
     orders = max((m for form, m in filter(None, forms.values()) if form == "multiple"), default=0)
     subs = {m for form, m in filter(None, forms.values()) if form == "sub"}
     if orders:

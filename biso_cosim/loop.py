@@ -16,7 +16,12 @@ An estimator joins (``biso_cosim.estimators.Estimator``, in the estimator's own 
   coefficients and state, advanced in place, and outputs for up to ``bound`` samples with
   at least the fields ``q_wb`` (bound, 4) and ``flags`` (bound,) int64, and ``gyro_bias_b``
   (bound, 3) where it estimates a bias), or None when it cannot run in the loop now;
-* ``arrays_version``: a counter it increases whenever it replaces one of those arrays.
+* ``arrays_version``: a counter it increases whenever it replaces one of those arrays;
+* ``gyro_increments``: the gyro increments its kernel reads (``GyroIncrements``: the first m
+  rows of ``PeriodSamples.dtheta_b`` or ``dtheta_sub_b``), None (the default) for none. The
+  co-simulation has its MPU-9250 form them, once per period, for every estimator that
+  declares them (and its navigators); a host that does not form them (the plug-in) runs no
+  such estimator in its call.
 
 A receiver (a sensor fed the period's true antenna motion: the GNSS receiver,
 ``biso_cosim.sensors.GnssReceiver``) joins by the same kind of declaration: ``loop_check(arrays,
@@ -43,10 +48,12 @@ from numba.experimental import structref
 from biso_cosim._numba import jit
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
+from biso_cosim.vehicle.sim import HistoryArrays
 from biso_cosim.vehicle._kernels import HISTORY_READ, TRUTH_LAYOUT, _history_rows, _interpolate_rows, _pack_rows, _wheel_odometry
 
-__all__ = ["PhysicsRows", "SensorArrays", "SampleOutputs", "TruthArrays", "LoopSamples", "PeriodSamples", "PeriodWork",
-           "PeriodPlan", "NO_RECEIVER", "loop_kernel", "prepare", "period_samples", "sensor_inputs", "CLOCK_T_START",
+__all__ = ["PhysicsRows", "SensorArrays", "SampleOutputs", "TruthArrays", "PeriodSamples", "PeriodWork",
+           "PeriodPlan", "NO_RECEIVER", "NO_FIXES", "loop_kernel", "prepare", "period_samples", "samples_of",
+           "sensor_inputs", "CLOCK_T_START",
            "CLOCK_FIRST_STEP", "CLOCK_HAS_BEFORE", "CLOCK_FIXES", "SENSE_OK", "SENSE_POSITION", "SENSE_OUT_OF_STEP",
            "SENSE_RESTEP", "SENSE_RECEIVER"]
 
@@ -66,17 +73,12 @@ SENSE_OK, SENSE_POSITION, SENSE_OUT_OF_STEP, SENSE_RESTEP, SENSE_RECEIVER = -1, 
 
 
 class PhysicsRows(NamedTuple):
-    """Where the period's MuJoCo sensordata rows come from: MuJoCo's sensor ``history`` ring
-    (``layout``, ``warnings``, the current ``sensordata``, read into ``rows``), or, with an
-    empty history, ``rows`` themselves; ``gather`` the truth's sensordata columns, physics
-    rate in Hz."""
+    """Where the period's MuJoCo sensordata rows come from (``biso_cosim.vehicle.HistoryArrays``):
+    MuJoCo's sensor ``history`` ring (its ``layout``, ``warnings``, the current ``sensordata``,
+    read into ``rows``), or, with an empty history, ``rows`` themselves; ``gather`` the truth's
+    sensordata columns; and the physics rate in Hz."""
 
-    history: np.ndarray
-    layout: np.ndarray
-    warnings: np.ndarray
-    sensordata: np.ndarray
-    rows: np.ndarray
-    gather: np.ndarray
+    source: HistoryArrays
     rate_hz: float
 
 
@@ -96,7 +98,7 @@ class SensorArrays(NamedTuple):
 
 
 class SampleOutputs(NamedTuple):
-    """The chip's outputs for up to ``flags.shape[0]`` samples (``MPU9250._samples`` reads
+    """The chip's outputs for up to ``flags.shape[0]`` samples (``MPU9250.sample_views`` reads
     them), and the samples' flags as int64 (``imu_flags``)."""
 
     floats: np.ndarray
@@ -119,27 +121,18 @@ class TruthArrays(NamedTuple):
     odometry: np.ndarray
 
 
-class LoopSamples(NamedTuple):
-    """A period's k samples as the plug-in's tick gives them to in-loop estimators (the
-    co-simulation's call gives ``PeriodSamples``, these fields and the fixes): gyro (rad/s),
-    accelerometer (m/s²), magnetometer (µT), (k, 3) body axes; ``mag_fresh`` (k,) uint8;
-    ``imu_flags`` (k,) int64; ``speed_mps`` (k,) wheel odometry (empty when no estimator
-    takes it); ``truth`` (k, width) packed truth at the samples (``TRUTH_LAYOUT``)."""
-
-    gyro_b: np.ndarray
-    accel_b: np.ndarray
-    mag_b: np.ndarray
-    mag_fresh: np.ndarray
-    imu_flags: np.ndarray
-    speed_mps: np.ndarray
-    truth: np.ndarray
-
-
 class PeriodSamples(NamedTuple):
-    """The co-simulation's period as its estimators and consumers receive it: the fields of
-    ``LoopSamples`` (the plug-in's tick gives those alone) and ``gnss``, the (m, 9) fixes the
-    receiver delivered during the period (``biso_cosim.sensors.gnss.FIX_LAYOUT``: time of
-    validity, arrival, ENU position and velocity, valid), (0, 9) without a receiver."""
+    """A period's k samples as its in-loop estimators and consumers receive them: gyro
+    (rad/s), accelerometer (m/s²), magnetometer (µT), (k, 3) body axes; ``mag_fresh`` (k,)
+    uint8; ``imu_flags`` (k,) int64; ``speed_mps`` (k,) wheel odometry (empty when no
+    estimator takes it); ``truth`` (k, width) packed truth at the samples (``TRUTH_LAYOUT``;
+    (0, 0) from the plug-in, which has none); ``gnss`` the (m, 9) fixes the receiver
+    delivered during the period (``biso_cosim.sensors.gnss.FIX_LAYOUT``: time of validity,
+    arrival, ENU position and velocity, valid), (0, 9) without a receiver; and the gyro
+    increments over each sample interval the sensor formed for the estimators that declare
+    ``gyro_increments`` (rad, body axes; ``ImuSamples.dtheta`` / ``dtheta_sub``):
+    ``dtheta_b`` (k, r, 3) the multiple integrals ΔΘ¹..ΔΘ^r, ``dtheta_sub_b`` (k, m, 3) the
+    m sub-interval increments, r = 0 and m = 0 (empty) when nothing takes them."""
 
     gyro_b: np.ndarray
     accel_b: np.ndarray
@@ -149,6 +142,8 @@ class PeriodSamples(NamedTuple):
     speed_mps: np.ndarray
     truth: np.ndarray
     gnss: np.ndarray
+    dtheta_b: np.ndarray
+    dtheta_sub_b: np.ndarray
 
 
 class NoReceiver(NamedTuple):
@@ -159,9 +154,9 @@ class NoReceiver(NamedTuple):
 
 class PeriodWork(NamedTuple):
     """A consumer's own work after each period (``CoSimulation.attach``): the jitted
-    ``kernel(samples, q, arrays)`` on the period's ``LoopSamples`` (k may be 0), ``q`` the tuple of the ``q_wb`` outputs of the estimators ``estimates``
-    names (their first k rows), ``arrays`` the consumer's own (a tuple or named tuple, kept
-    as long as it is attached)."""
+    ``kernel(samples, q, arrays)`` on the period's ``PeriodSamples`` (k may be 0), ``q`` the
+    tuple of the ``q_wb`` outputs of the estimators ``estimates`` names (their first k rows),
+    ``arrays`` the consumer's own (a tuple or named tuple, kept as long as it is attached)."""
 
     kernel: Callable
     arrays: Any
@@ -215,7 +210,10 @@ def _no_receiver(arrays, pos_w, vel_w):
     return 0
 
 
-NO_RECEIVER = (_no_receiver_check, _no_receiver, NoReceiver(np.empty((0, 9))))
+NO_FIXES = np.empty((0, 9))
+"""``PeriodSamples.gnss`` without a receiver."""
+
+NO_RECEIVER = (_no_receiver_check, _no_receiver, NoReceiver(NO_FIXES))
 """``PeriodPlan.receiver`` of a period without a receiver."""
 
 
@@ -242,14 +240,15 @@ def _sense(physics, sensor, truth, outputs, clock, receiver):
     (a row index, or -2), ``SENSE_POSITION`` or ``SENSE_RECEIVER`` (nothing changed but the
     packed truth), ``SENSE_OUT_OF_STEP``, or ``SENSE_RESTEP`` and ``_history_rows``' outcome
     (nothing changed)."""
-    rows = physics.rows
-    if physics.history.shape[0]:
-        outcome = _history_rows(physics.history, physics.layout, rows.shape[0], clock[CLOCK_T_START], physics.warnings,
-                                physics.sensordata, rows)
+    source = physics.source
+    rows = source.rows
+    if source.history.shape[0]:
+        outcome = _history_rows(source.history, source.layout, rows.shape[0], clock[CLOCK_T_START], source.warnings,
+                                source.sensordata, rows)
         if outcome != HISTORY_READ:
             return SENSE_RESTEP, outcome
     packed = truth.packed
-    _pack_rows(rows, physics.gather, int(clock[CLOCK_FIRST_STEP]), physics.rate_hz, packed)
+    _pack_rows(rows, source.gather, int(clock[CLOCK_FIRST_STEP]), physics.rate_hz, packed)
     n = packed.shape[0]
     inputs = np.empty((3, n, 3))
     if not sensor_inputs(packed, truth.field_enu_ut, inputs[0], inputs[1], inputs[2]):
@@ -284,14 +283,27 @@ def _sense(physics, sensor, truth, outputs, clock, receiver):
 
 
 @jit
-def _samples_of(outputs, truth, k, fixes):
-    """The first k samples of a period and its fixes as ``PeriodSamples`` (views of the outputs)."""
+def samples_of(outputs, sensor, k, speed_mps, truth, fixes):
+    """The first k samples in the chip's ``outputs`` (``SampleOutputs``, written by the
+    kernel of ``sensor``, ``SensorArrays``) as ``PeriodSamples`` of views of them, with the
+    host's ``speed_mps``, ``truth`` and ``fixes`` (the layout ``MPU9250.sample_views`` reads)."""
     floats, bound = outputs.floats, outputs.flags.shape[0]
-    speed = truth.odometry[:k] if truth.odometry.shape[0] else truth.odometry
+    r, m = sensor.order, sensor.nsub
+    o = 11 * bound  # the increments: ΔΘ^1..r, ΔV^1..r, then the sub-interval ΔΘ, ΔV
+    s = o + 6 * bound * r
     return PeriodSamples(floats[bound:bound + 3 * k].reshape((k, 3)),
                          floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
                          floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
-                         outputs.imu_flags[:k], speed, truth.at[:k], fixes)
+                         outputs.imu_flags[:k], speed_mps, truth, fixes,
+                         floats[o:o + 3 * k * r].reshape((k, r, 3)), floats[s:s + 3 * k * m].reshape((k, m, 3)))
+
+
+@jit
+def _samples_of(outputs, sensor, truth, k, fixes):
+    """The first k samples of a period and its fixes (the plan's records, not the plan: a
+    cached kernel's type must not name the estimators' kernels)."""
+    speed = truth.odometry[:k] if truth.odometry.shape[0] else truth.odometry
+    return samples_of(outputs, sensor, k, speed, truth.at[:k], fixes)
 
 
 @jit(cache=False)  # (a plan's type names its kernels: compiled once per process for each set)
@@ -301,7 +313,8 @@ def loop_kernel(plan):
     status, k = _sense(plan.physics, plan.sensor, plan.truth, plan.outputs, plan.clock, plan.receiver)
     if status != SENSE_OK:
         return status, k
-    samples = _samples_of(plan.outputs, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
+    samples = _samples_of(plan.outputs, plan.sensor, plan.truth, k,
+                          plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
     for entry in literal_unroll(plan.estimators):
         entry[0](entry[1], samples)
     for entry in literal_unroll(plan.consumers):
@@ -309,10 +322,10 @@ def loop_kernel(plan):
     return status, k
 
 
-@jit
+@jit(cache=False)  # (as ``loop_kernel``: the plan's type names its kernels)
 def period_samples(plan, k):
     """The first k samples of ``plan``'s last successful call and its fixes (``PeriodSamples``)."""
-    return _samples_of(plan.outputs, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
+    return _samples_of(plan.outputs, plan.sensor, plan.truth, k, plan.receiver[2].fixes[:int(plan.clock[CLOCK_FIXES])])
 
 
 _COMPILED: set = set()

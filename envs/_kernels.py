@@ -275,7 +275,7 @@ def _route_ahead(path_x, path_y, path_s, s, offsets, x, y, yaw, out):
 
 # --------------------------------------------------------------------------- per-period work
 # Each environment's work after a period (``biso_cosim.loop.PeriodWork``, attached to the
-# co-simulation): ``kernel(samples, q, arrays)`` on the period's ``LoopSamples`` (k rows),
+# co-simulation): ``kernel(samples, q, arrays)`` on the period's ``PeriodSamples`` (k rows),
 # ``q`` the q_wb outputs of the estimators the environment named (their first k rows are
 # the period's), ``arrays`` the environment's own; the same call on both of the loop's paths.
 

@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from biso_cosim.cosim import _CONTROLS_APPLIED, DEFAULT_SENSOR_PROFILE, EstimatorSpec
+from biso_cosim.cosim import CONTROLS_APPLIED, DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_choice, _check_number
 from biso_cosim.envs._docs import finish_docstring
@@ -240,7 +240,7 @@ class DrivingEnv(CosimEnv, EzPickle):
     def step(self, action: Any):
         self._require_running()
         before = self._apply_action(action)
-        self._advance(_CONTROLS_APPLIED)  # (the driver's progress and cross-track error: at the end of the step)
+        self._advance(CONTROLS_APPLIED)  # (the driver's progress and cross-track error: at the end of the step)
         info, observation = self._view()
         w = self.weights
         gained_m = info["distance_m"] - before

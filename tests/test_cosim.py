@@ -396,7 +396,7 @@ def _assert_same_samples(a, b):
      ["biso", "second", "biso_plus", "third", "dcm_pi"]),
     ({"navigators": ("two_sample",), "gnss": "consumer",
       "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")},
-     ["biso", "biso_plus", "gnss_kalman"]),  # (increments: after the period call; the receiver's fixes: in it)
+     ["biso", "biso_plus", "biso_coning", "gnss_kalman"]),  # (the increments and the receiver's fixes: in the call)
     ({"sensor_profile": "mpu9250", "gyro_calibration_s": 1.0, "navigators": ("two_sample",), "gnss": "consumer",
       "estimators": ("biso", "biso_plus", ("biso", {"gyro_step": "two_sample"}, "biso_coning"), "gnss_kalman")}, []),
 ])
@@ -405,10 +405,9 @@ def test_period_kernel_equals_the_general_path(options, in_loop, reuse):
     """step() senses a period by one call (truth packing, sensor inputs, MPU-9250, truth at
     the samples, and every estimator that declares a loop kernel): the same numbers, bit for
     bit, as the general path (``fast_path = False``); also when, as for the environments,
-    every period's samples and estimates are written into the same arrays. An estimator
-    whose settings need inputs the call does not give (increments) runs after it; the GNSS
-    receiver and the GNSS-aided filters run in it; a gyro offset to remove first takes the
-    general path."""
+    every period's samples and estimates are written into the same arrays. A coning-algorithm
+    gyro step (the sensor's increments, ``PeriodSamples.dtheta_sub_b``), the GNSS receiver and
+    the GNSS-aided filters run in it; a gyro offset to remove first takes the general path."""
     opts = dict(options)
     estimators = opts.pop("estimators", ("biso", "biso_plus", "poisson"))
     specs = [e if isinstance(e, str) else EstimatorSpec(e[0], e[1], label=e[2]) for e in estimators]
@@ -490,7 +489,7 @@ def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
 def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case, reuse):
     """step() leaves a period's rows in MuJoCo's sensor history for the period kernel; after
     a MuJoCo warning (here a diverged state that MuJoCo resets) the period is stepped again,
-    and a period longer than the history is stepped through ``_step_rows``: either way the
+    and a period longer than the history is stepped through ``VehicleSim.step_rows``: either way the
     numbers of the general path, also from the arguments an environment's periods reuse."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     rate = 4.0 if case == "long_period" else 50.0

@@ -198,7 +198,7 @@ def test_bad_imu_flags_are_refused_and_lose_nothing(name):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_prechecked_path_equals_update_bit_for_bit(name):
-    """The co-simulation's checked-once path (Estimator._update_prechecked) gives what
+    """The co-simulation's checked-once path (Estimator.update_prechecked) gives what
     update gives, chunk by chunk, from the same state."""
     _, gyro, accel, mag, speed = _samples()
     flags = np.zeros(len(gyro), dtype=np.int64)
@@ -208,7 +208,7 @@ def test_prechecked_path_equals_update_bit_for_bit(name):
         sl = slice(start, start + 4)
         extra = _inputs(a, speed, sl) | ({"imu_flags": flags[sl].copy()} if "imu_flags" in a.inputs else {})
         want = a.update(gyro[sl], accel[sl], mag[sl], **extra)
-        got = b._update_prechecked(gyro[sl].copy(), accel[sl].copy(), mag[sl].copy(), extra)
+        got = b.update_prechecked(gyro[sl].copy(), accel[sl].copy(), mag[sl].copy(), extra)
         assert np.array_equal(got.q_wb, want.q_wb) and np.array_equal(got.flags, want.flags)
         assert (got.gyro_bias_b is None) == (want.gyro_bias_b is None)
         if got.gyro_bias_b is not None:
@@ -221,9 +221,9 @@ def test_prechecked_path_checks_again_when_the_parameters_change_the_inputs():
     next call is checked again: refused with update's message, nothing changed."""
     _, gyro, accel, mag, _ = _samples()
     est = make_estimator("biso", 200.0)
-    est._update_prechecked(gyro[:4].copy(), accel[:4].copy(), mag[:4].copy(), {})
+    est.update_prechecked(gyro[:4].copy(), accel[:4].copy(), mag[:4].copy(), {})
     state = est.get_state()
     est.set_params(gyro_step="two_sample")
     with pytest.raises(ValueError, match="needs the gyro increments: pass dtheta_b"):
-        est._update_prechecked(gyro[4:8].copy(), accel[4:8].copy(), mag[4:8].copy(), {})
+        est.update_prechecked(gyro[4:8].copy(), accel[4:8].copy(), mag[4:8].copy(), {})
     assert est.get_state() == state

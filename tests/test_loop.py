@@ -118,15 +118,52 @@ def test_a_users_estimator_defined_here_joins_the_period_call():
     assert np.degrees(angle).max() < 1.0
 
 
-@pytest.mark.parametrize("name", estimator_names())
-def test_fast_path_equals_general_path_for_every_registered_estimator(name):
-    fast, general = _pair(duration_s=3.0, seed=5, estimators=[name], keep_log=True)
-    assert fast.loop_estimators == (name,)  # (none falls out of the period call)
+# every registered estimator, and BISO's gyro steps: each coning algorithm (the multiple
+# integrals of every order it takes, and the sub-interval increments), two at once with a
+# navigator that has the sensor form more orders than they read
+_GYRO_STEPS = [(EstimatorSpec("biso", {"gyro_step": step}, label=f"biso_{step}"),) for step in
+               ("one_sample", "two_sample", "traditional3", "traditional3_miller", "smoothing", "invariant")]
+_GYRO_STEPS.append((EstimatorSpec("poisson", {"gyro_step": "smoothing"}, label="poisson_smoothing"),
+                    EstimatorSpec("positional", {"gyro_step": "two_sample"}, label="positional_two_sample")))
+
+
+@pytest.mark.parametrize("specs", [(EstimatorSpec(name),) for name in estimator_names()] + _GYRO_STEPS,
+                         ids=lambda specs: "+".join(s.key for s in specs))
+def test_fast_path_equals_general_path_for_every_registered_estimator(specs):
+    keys = tuple(s.key for s in specs)
+    navigators = ("invariant",) if len(specs) > 1 else ()
+    fast, general = _pair(duration_s=3.0, seed=5, estimators=list(specs), keep_log=True, navigators=navigators)
+    assert fast.loop_estimators == keys  # (none falls out of the period call)
     for _ in range(60):
         a, b = fast.step(), general.step()
         assert np.array_equal(a[0].gyro_b, b[0].gyro_b) and np.array_equal(a[1].packed, b[1].packed)
-        _assert_same_estimate(a[2][name], b[2][name], name)
+        for key in keys:
+            _assert_same_estimate(a[2][key], b[2][key], key)
     _assert_same_run(fast.run(), general.run())
+
+
+def test_gyro_steps_in_the_call_read_the_period_samples_increments():
+    """An estimator that declares gyro increments finds them in ``PeriodSamples`` (the
+    sensor's, formed once per period), and the general path feeds ``update`` the same."""
+    sim = CoSimulation("figure8", duration_s=1.0, seed=2, estimators=[
+        EstimatorSpec("biso", {"gyro_step": "invariant"}, label="inv"),
+        EstimatorSpec("biso", {"gyro_step": "two_sample"}, label="two")], keep_log=False)
+    assert sim.estimators["inv"].gyro_increments == ("multiple", 4)
+    assert sim.estimators["two"].gyro_increments == ("sub", 2)
+    seen = np.zeros(2, dtype=np.int64)
+
+    @jit
+    def record(samples, q, arrays):
+        arrays[0] = samples.dtheta_b.shape[1]
+        arrays[1] = samples.dtheta_sub_b.shape[1]
+
+    sim.attach(PeriodWork(record, seen))
+    samples, _, _ = sim.step()
+    assert tuple(seen) == (4, 2) and samples.dtheta.shape[1:] == (4, 3) and samples.dtheta_sub.shape[1:] == (2, 3)
+    plain = CoSimulation("figure8", duration_s=1.0, seed=2, estimators=["biso"], keep_log=False)
+    plain.attach(PeriodWork(record, seen))
+    plain.step()
+    assert tuple(seen) == (0, 0)  # nothing takes increments: the fields are empty
 
 
 @pytest.mark.parametrize("name", ["gnss_complementary", "gnss_kalman"])

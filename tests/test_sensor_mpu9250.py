@@ -124,7 +124,7 @@ def test_the_kernel_writes_every_output_entry(monkeypatch, registers):
     magnetometer measuring, powered down, or in single-measurement mode."""
     arrays = motion(400)[:3]
     expected = MPU9250("mpu9250", seed=4, registers=registers).simulate(*arrays, increments=2, subintervals=2)
-    fresh = MPU9250._outputs
+    fresh = MPU9250.output_arrays
 
     def garbage(self, n, increments, subintervals):
         out = fresh(self, n, increments, subintervals)
@@ -132,7 +132,7 @@ def test_the_kernel_writes_every_output_entry(monkeypatch, registers):
             a.view(np.uint8)[...] = 0x5A
         return out
 
-    monkeypatch.setattr(MPU9250, "_outputs", garbage)
+    monkeypatch.setattr(MPU9250, "output_arrays", garbage)
     got = MPU9250("mpu9250", seed=4, registers=registers).simulate(*arrays, increments=2, subintervals=2)
     assert_same(got, expected)
     np.testing.assert_array_equal(got.raw.words, expected.raw.words)

@@ -210,7 +210,7 @@ def test_a_control_period_from_the_sensor_history_equals_mj_step_calls_bit_for_b
             mujoco.mj_step(b.model, b.data)
             rows.append(b.data.sensordata.copy())
         b.steps_done += len(rows)
-        np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), b.steps_done - len(rows)).packed)
+        np.testing.assert_array_equal(truth.packed, b.truth_of(np.array(rows), b.steps_done - len(rows)).packed)
         sa, sb = np.empty(size), np.empty(size)
         mujoco.mj_getState(a.model, a.data, sa, mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_getState(b.model, b.data, sb, mujoco.mjtState.mjSTATE_INTEGRATION)
@@ -233,7 +233,7 @@ def test_sensor_history_of_the_model():
 
 def test_a_clock_set_back_does_not_confuse_the_history():
     """MuJoCo advances a sensor's history ring only past its newest time stamp: after the
-    clock is set back (here by hand, without ``_restart_history``) the rows of the next
+    clock is set back (here by hand, without ``restore_physics``) the rows of the next
     period are still those of plain mj_step calls (the period is stepped again), and the
     rings start afresh for the periods after it."""
     route = circle_route(20.0, 6.0, laps=1)
@@ -273,7 +273,7 @@ def check_rows_as_mj_step(a, b, periods):
         for _ in range(b.steps_per_control):
             mujoco.mj_step(b.model, b.data)
             rows.append(b.data.sensordata.copy())
-        np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), b.steps_done).packed)
+        np.testing.assert_array_equal(truth.packed, b.truth_of(np.array(rows), b.steps_done).packed)
         b.steps_done += len(rows)
 
 
@@ -292,7 +292,7 @@ def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monke
     for _ in range(b.steps_per_control):
         mujoco.mj_step(b.model, b.data)
         rows.append(b.data.sensordata.copy())
-    np.testing.assert_array_equal(truth.packed, b._truth(np.array(rows), 0).packed)
+    np.testing.assert_array_equal(truth.packed, b.truth_of(np.array(rows), 0).packed)
     assert a.periods_with_warnings == 1
     a.reset()
     drive(a, 2.0)

@@ -297,7 +297,7 @@ def _increments_input(log: _Log, label: str, method: str, form: tuple[str, int],
 def main(args: argparse.Namespace) -> int:
     from biso_cosim.estimators import estimate_attitude, estimator_inputs, estimator_names, flags, make_estimator
     from biso_cosim.estimators.rawlog import is_raw_header
-    from biso_cosim.logs import ODOMETRY_COLUMN, increment_form, write_estimates_table
+    from biso_cosim.logs import ODOMETRY_COLUMN, write_estimates_table
     from biso_cosim.output import check_output_file
 
     path = Path(args.input)
@@ -355,7 +355,7 @@ def main(args: argparse.Namespace) -> int:
             if fixes is not None:
                 inputs["gnss"] = fixes
                 fed.append(f"{len(fixes)} GNSS fixes from the log")
-        form = increment_form(make_estimator(method, fs, **params)) if "dtheta_b" in takes else None
+        form = make_estimator(method, fs, **params).gyro_increments if "dtheta_b" in takes else None
         if form is not None:
             if kind == "raw":
                 raise UserError(f"{label} ({method}): gyro_step {params.get('gyro_step')!r} integrates gyro increments, "

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from biso_cosim.estimators import flags
-from biso_cosim.estimators._base import Estimate, Estimator, LoopArrays, State, param, param_markdown, param_table
+from biso_cosim.estimators._base import Estimate, Estimator, GyroIncrements, LoopArrays, State, param, param_markdown, param_table
 from biso_cosim.estimators.biso import BisoEstimator, BisoParams
 from biso_cosim.estimators.biso_plus import BisoPlusEstimator, BisoPlusParams
 from biso_cosim.estimators.dcm_pi import DcmPiEstimator, DcmPiParams
@@ -40,6 +40,7 @@ __all__ = [
     "Estimate",
     "Estimator",
     "LoopArrays",
+    "GyroIncrements",
     "State",
     "param",
     "BisoParams",

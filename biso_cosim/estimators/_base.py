@@ -18,7 +18,7 @@ from typing import Any, Callable, ClassVar, Mapping, NamedTuple
 
 import numpy as np
 
-__all__ = ["Estimate", "State", "Estimator", "param", "param_table", "param_markdown", "as_samples",
+__all__ = ["Estimate", "State", "Estimator", "GyroIncrements", "param", "param_table", "param_markdown", "as_samples",
            "as_series", "as_imu_flags", "layout_offsets", "gyro_range_param", "accel_range_param",
            "saturation_limits", "INPUTS"]
 
@@ -286,6 +286,17 @@ def as_quaternion(name: str, value: Any) -> np.ndarray:
     return q / n
 
 
+class GyroIncrements(NamedTuple):
+    """The gyro increments an estimator's input ``dtheta_b`` takes (``Estimator.gyro_increments``):
+    ``form`` "multiple", the multiple integrals ΔΘ¹..ΔΘ^m over each sample interval, or "sub",
+    its m sub-interval increments (``ImuSamples.dtheta`` / ``dtheta_sub``; in the period call
+    ``biso_cosim.loop.PeriodSamples.dtheta_b`` / ``dtheta_sub_b``, of which an in-loop kernel
+    reads the first m rows)."""
+
+    form: str
+    m: int
+
+
 class LoopArrays(NamedTuple):
     """An estimator's arrays in the period call (``Estimator.loop_arrays``): coefficients,
     state, and the outputs q_wb (bound, 4), flags (bound,) int64, gyro_bias_b (bound, 3) or
@@ -320,11 +331,12 @@ class Estimator:
     estimates_bias: ClassVar[bool] = False
     loop_kernel: ClassVar[Callable | None] = None
     """The estimator's kernel in the co-simulation's period call (``biso_cosim.loop``): a
-    jitted ``kernel(arrays, samples)`` on ``LoopSamples`` (k rows: gyro_b, accel_b, mag_b,
-    imu_flags, speed_mps, ...) that advances ``arrays`` (``loop_arrays``) and writes the
-    first k rows of its outputs, with the same arithmetic as ``update`` on those inputs.
-    The co-simulation's call gives ``PeriodSamples`` (``LoopSamples`` and ``gnss``, the
-    period's fixes). None: the estimator runs by ``update`` after the period's call."""
+    jitted ``kernel(arrays, samples)`` on ``biso_cosim.loop.PeriodSamples`` (k rows: gyro_b,
+    accel_b, mag_b, imu_flags, speed_mps, ..., the period's fixes ``gnss`` and the gyro
+    increments ``dtheta_b``/``dtheta_sub_b`` it declares in ``gyro_increments``) that advances
+    ``arrays`` (``loop_arrays``) and writes the first k rows of its outputs, with the same
+    arithmetic as ``update`` on those inputs. None: the estimator runs by ``update`` after
+    the period's call."""
     loop_views: ClassVar[bool] = True
     """Whether ``loop_estimate(arrays, k)`` is views of the arrays alone, so that a caller may
     keep it for every later period of k samples (the co-simulation does, with reused
@@ -340,7 +352,7 @@ class Estimator:
         self._coef = self._coefficients(params, self.fs_hz)
         self._q0: np.ndarray | None = None
         self._state = self._initial_state(None)
-        self._prechecked = None  # (parameter record, input requirements) checked: see _update_prechecked
+        self._prechecked = None  # (parameter record, input requirements) checked: see update_prechecked
         self._retune_record: tuple[Any, np.ndarray | None] = (None, None)  # (record, its retune_values)
         self.arrays_version = 0
         """Counts the replacements of the coefficient and state arrays (``loop_arrays``)."""
@@ -475,8 +487,8 @@ class Estimator:
         self._run(self._coef, self._state, gyro, accel, mag, extra, q_out, flags, bias)
         return Estimate(q_out, flags, bias if self.estimates_bias else None)
 
-    def _update_prechecked(self, gyro_b: np.ndarray, accel_b: np.ndarray, mag_b: np.ndarray,
-                           inputs: dict[str, np.ndarray]) -> Estimate:
+    def update_prechecked(self, gyro_b: np.ndarray, accel_b: np.ndarray, mag_b: np.ndarray,
+                          inputs: dict[str, np.ndarray]) -> Estimate:
         """``update`` for a caller that passes arrays already in the kernels' form, and the
         same optional inputs every call: the co-simulation, feeding its own MPU-9250's
         samples (C-contiguous float64 (k, 3), int64 flags, C-contiguous increments and
@@ -520,6 +532,14 @@ class Estimator:
         """The estimate of the first k samples in ``arrays``' outputs (views)."""
         bias = getattr(arrays, "gyro_bias_b", None)
         return Estimate(arrays.q_wb[:k], arrays.flags[:k], bias[:k] if self.estimates_bias else None)
+
+    @property
+    def gyro_increments(self) -> GyroIncrements | None:
+        """The gyro increments the input ``dtheta_b`` takes as the parameters are set now
+        (``GyroIncrements``: form and rows), None when the estimator takes none (none here):
+        the one statement of it, from which the co-simulation asks its MPU-9250 for them,
+        feeds them to ``update`` and to the period call, and the log names their columns."""
+        return None
 
     def _input_requirements(self) -> Any:
         """What of the parameters decides which optional inputs ``update`` accepts and in

@@ -68,6 +68,7 @@ from biso_cosim._numba import jit
 from biso_cosim.estimators import flags as fl
 from biso_cosim.estimators._base import (
     Estimator,
+    GyroIncrements,
     accel_range_param,
     check_finite,
     gyro_range_param,
@@ -78,6 +79,7 @@ from biso_cosim.estimators._base import (
 from biso_cosim.estimators._kernels import _input_checks, _qexp_fast
 from biso_cosim.estimators.reference import REFERENCE_METHODS, _reference
 from biso_cosim.frames import Q_FLU_FUR, Q_NUE_ENU, _qexp_rotvec, _qmul
+from biso_cosim.strapdown._kernels import _batch_coning
 from biso_cosim.strapdown.algorithms import check_rows, get_algorithm, list_algorithms, rotation_vector
 
 __all__ = [
@@ -701,12 +703,53 @@ def gyro_step_algorithm(params: BisoParams):
 def rates_from_increments(step, dtheta_b: np.ndarray, gyro_b: np.ndarray, h: float) -> np.ndarray:
     """The rate the kernel integrates over each interval, Φ/h with Φ = ΔΘ + δΘ_c (Litmanovich
     2002, eq. (1.11)): held over the interval it turns λ by exactly Φ. Samples with non-finite
-    increments keep their gyro reading (which then follows the gyro policy)."""
+    increments keep their gyro reading (which then follows the gyro policy). The slow
+    reference of ``_rates_from_increments`` (the strapdown package's ``rotation_vector``)."""
     out = np.array(gyro_b, dtype=np.float64, copy=True)
     ok = np.isfinite(dtheta_b).all(axis=(1, 2))
     if ok.any():
         out[ok] = rotation_vector(step.name, dtheta_b[ok], h) / h
     return out
+
+
+@jit
+def _rates_from_increments(algorithm, sum_rows, dtheta_b, gyro_b, h, out):
+    """``rates_from_increments`` in a kernel, the same numbers bit for bit: into ``out`` (k, 3),
+    Φ/h of each sample whose m increments ``dtheta_b`` (k, m, 3) are all finite, its gyro
+    reading otherwise. ``algorithm`` the coning algorithm's id (``AlgorithmInfo.id``);
+    ``sum_rows``: ΔΘ is the sum of the m rows (the "sub" form, summed from 0 as numpy's
+    ``sum`` does), else ΔΘ¹, the first row (the "multiple" form). The coning correction
+    (``_batch_coning``, per row) is written into ``out`` first."""
+    _batch_coning(algorithm, dtheta_b, h, out)
+    m = dtheta_b.shape[1]
+    for i in range(gyro_b.shape[0]):
+        finite = True
+        for j in range(m):
+            for a in range(3):
+                if not math.isfinite(dtheta_b[i, j, a]):
+                    finite = False
+        for a in range(3):
+            if not finite:
+                out[i, a] = gyro_b[i, a]
+                continue
+            if sum_rows:
+                total = 0.0
+                for j in range(m):
+                    total += dtheta_b[i, j, a]
+            else:
+                total = dtheta_b[i, 0, a]
+            out[i, a] = (total + out[i, a]) / h
+
+
+def gyro_increments(params: BisoParams) -> GyroIncrements | None:
+    """The increments ``gyro_step`` integrates, None for 'hold': the algorithm's own form and
+    rows, and a one-row algorithm (one_sample) takes ΔΘ¹, the whole interval's increment."""
+    step = gyro_step_algorithm(params)
+    if step is None:
+        return None
+    if step.form == "multiple" or step.m_dtheta == 1:
+        return GyroIncrements("multiple", step.m_dtheta)
+    return GyroIncrements("sub", step.m_dtheta)
 
 
 class BisoLoopArrays(NamedTuple):
@@ -718,18 +761,38 @@ class BisoLoopArrays(NamedTuple):
     velocity_enu_mps: np.ndarray  # (0, 3): the loop gives no velocity
     q_wb: np.ndarray
     flags: np.ndarray
+    # ``gyro_step``: the coning algorithm's id (-1: 'hold', the readings themselves), whether
+    # it sums its increments (``_rates_from_increments``), whether it reads the multiple
+    # integrals ``PeriodSamples.dtheta_b`` (else ``dtheta_sub_b``), how many rows (m), the
+    # sample interval (s), and the rates Φ/h it makes (bound, 3)
+    step_id: int
+    step_sums: bool
+    step_multiple: bool
+    step_rows: int
+    interval_s: float
+    rates_b: np.ndarray
 
 
 @jit
 def _biso_loop(arrays, samples):
     """BISO on a period's samples (``biso_cosim.loop``): ``update`` with the sensor's flags
-    as ``imu_flags``, without velocity, ``gyro_step="hold"``."""
+    as ``imu_flags``, without velocity, and with a coning-algorithm ``gyro_step`` the
+    period's increments (``PeriodSamples.dtheta_b`` or ``dtheta_sub_b``) as ``dtheta_b``."""
     k = samples.gyro_b.shape[0]
-    _biso_batch(arrays.coef, arrays.state, samples.gyro_b, samples.accel_b, samples.mag_b, samples.imu_flags,
+    if arrays.step_id < 0:
+        _biso_batch(arrays.coef, arrays.state, samples.gyro_b, samples.accel_b, samples.mag_b, samples.imu_flags,
+                    arrays.velocity_enu_mps, arrays.q_wb[:k], arrays.flags[:k], arrays.scratch)
+        return
+    increments = samples.dtheta_b if arrays.step_multiple else samples.dtheta_sub_b
+    rates = arrays.rates_b[:k]
+    _rates_from_increments(arrays.step_id, arrays.step_sums, increments[:, :arrays.step_rows], samples.gyro_b,
+                           arrays.interval_s, rates)
+    _biso_batch(arrays.coef, arrays.state, rates, samples.accel_b, samples.mag_b, samples.imu_flags,
                 arrays.velocity_enu_mps, arrays.q_wb[:k], arrays.flags[:k], arrays.scratch)
 
 
 _NO_VELOCITY = np.empty((0, 3))
+_NO_RATES = np.empty((0, 3))
 
 
 class BisoEstimator(Estimator):
@@ -812,22 +875,33 @@ class BisoEstimator(Estimator):
     def _input_requirements(self) -> tuple:
         return self._params.gyro_step, self._params.latitude_rad is None
 
+    @property
+    def gyro_increments(self) -> GyroIncrements | None:
+        """The increments ``gyro_step`` integrates (``dtheta_b``; see ``Estimator.gyro_increments``)."""
+        return gyro_increments(self._params)
+
     loop_kernel = _biso_loop
 
-    def loop_arrays(self, bound: int) -> BisoLoopArrays | None:
-        """BISO's arrays in the period call (see ``Estimator.loop_arrays``); None when its
-        ``gyro_step`` integrates increments (the loop gives the readings only)."""
-        if self._params.gyro_step != "hold":
-            return None
+    def loop_arrays(self, bound: int) -> BisoLoopArrays:
+        """BISO's arrays in the period call (see ``Estimator.loop_arrays``); with a
+        coning-algorithm ``gyro_step`` the kernel reads the period's increments in the form
+        ``gyro_increments`` names."""
         if not hasattr(self, "_scratch"):
             self._scratch = np.empty((_BLOCK, _BUF_COLS))
+        step, wanted = gyro_step_algorithm(self._params), gyro_increments(self._params)
+        if step is None:
+            return BisoLoopArrays(self._coef, self._state, self._scratch, _NO_VELOCITY, np.empty((bound, 4)),
+                                  np.empty(bound, dtype=np.int64), -1, False, False, 0, 0.0, _NO_RATES)
         return BisoLoopArrays(self._coef, self._state, self._scratch, _NO_VELOCITY, np.empty((bound, 4)),
-                              np.empty(bound, dtype=np.int64))
+                              np.empty(bound, dtype=np.int64), int(step.id), step.form == "sub",
+                              wanted.form == "multiple", wanted.m, 1.0 / self.fs_hz, np.empty((bound, 3)))
 
     def _run(self, coef, state, gyro, accel, mag, extra, q_out, flags, bias) -> None:
         step = gyro_step_algorithm(self._params)
         if step is not None:
-            gyro = rates_from_increments(step, extra["dtheta_b"], gyro, 1.0 / self.fs_hz)
+            rates = np.empty(gyro.shape)
+            _rates_from_increments(step.id, step.form == "sub", extra["dtheta_b"], gyro, 1.0 / self.fs_hz, rates)
+            gyro = rates
         if not hasattr(self, "_scratch"):
             self._scratch = np.empty((_BLOCK, _BUF_COLS))
         _biso_batch(coef, state, gyro, accel, mag, extra["imu_flags"], extra["velocity_enu_mps"], q_out, flags,

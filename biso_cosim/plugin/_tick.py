@@ -7,7 +7,9 @@ body, the MPU-9250, the truth at its samples, the clock, and every in-loop estim
 truth (``HostRows``). Nothing here knows an
 estimator by type: each joins by its own ``loop_kernel`` and ``loop_arrays``
 (``biso_cosim.estimators.Estimator``, ``biso_cosim.loop``), as in the co-simulation's
-period call, and receives the call's samples as ``biso_cosim.loop.LoopSamples``.
+period call, and receives the call's samples as ``biso_cosim.loop.PeriodSamples`` (no fixes,
+no packed truth rows, no gyro increments: an estimator that declares ``gyro_increments``
+runs after the call, by ``update``).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.experimental import structref
 
 from biso_cosim._numba import jit
-from biso_cosim.loop import LoopSamples
+from biso_cosim.loop import NO_FIXES, samples_of
 from biso_cosim.plugin._kernels import CLOCK_T0, ChipRows, HostRows, _count, finish_ticks, prepare
 from biso_cosim.sensors._kernels import _simulate
 from biso_cosim.sensors.magnetic import _rotate_into_body
@@ -31,7 +33,7 @@ __all__ = ["TickPlan", "TickScratch", "TruthAtSamples", "tick_kernel", "compiled
 _FIRST_CLASS = "First-class function type feature is experimental"  # numba's label (see ``compile_plan``)
 
 # ``tick_kernel``'s status (the first of the pair it returns): success (then the number of
-# samples), or the chip's own status (``MPU9250._samples`` reads it; nothing changed), or a
+# samples), or the chip's own status (``MPU9250.sample_views`` reads it; nothing changed), or a
 # code of ``_kernels.BAD_INPUTS`` (then the row; nothing changed)
 TICK_OK, TICK_SENSOR = 0, -1
 
@@ -41,7 +43,7 @@ class TruthAtSamples(NamedTuple):
     (t₀ plus the chip's time stamp, s), attitude (bound, 4), package frames, and the
     reference point's forward speed (bound,); ``give_speed``: whether the estimators
     receive the speed as ``speed_mps`` (``speed_from_velocity``); ``packed`` (0, 0): the
-    ``LoopSamples.truth`` of the plug-in, which has no packed truth rows of the package's
+    ``PeriodSamples.truth`` of the plug-in, which has no packed truth rows of the package's
     car (``TRUTH_LAYOUT``; no estimator reads them, they are for the co-simulation's
     consumers)."""
 
@@ -98,13 +100,10 @@ def _no_estimator(arrays, samples):
 
 
 @jit
-def _samples_of(outputs, truth, k):
-    """The first k samples of a call as ``LoopSamples`` (views of the outputs)."""
-    floats, bound = outputs.floats, outputs.flags.shape[0]
+def _samples_of(sensor, outputs, truth, k):
+    """The first k samples of a call as ``PeriodSamples`` (views of the outputs; no fixes)."""
     speed = truth.speed_mps[:k] if truth.give_speed else truth.speed_mps[:0]
-    return LoopSamples(floats[bound:bound + 3 * k].reshape((k, 3)), floats[4 * bound:4 * bound + 3 * k].reshape((k, 3)),
-                       floats[7 * bound:7 * bound + 3 * k].reshape((k, 3)), outputs.status_bytes[:k, 0],
-                       outputs.imu_flags[:k], speed, truth.packed)
+    return samples_of(outputs, sensor, k, speed, truth.packed, NO_FIXES)
 
 
 @jit(cache=False)  # (a plan's type names its estimators' kernels: compiled once per process for each set)
@@ -135,7 +134,7 @@ def tick_kernel(plan, given):
     for i in range(k):
         truth.t_s[i] = t0_s + outputs.floats[i]
         outputs.imu_flags[i] = outputs.flags[i]
-    samples = _samples_of(outputs, truth, k)
+    samples = _samples_of(sensor, outputs, truth, k)
     for entry in literal_unroll(plan.estimators):
         entry[0](entry[1], samples)
     return TICK_OK, k

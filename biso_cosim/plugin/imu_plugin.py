@@ -217,7 +217,7 @@ class ImuPlugin:
             est = make_estimator(name, self.sensor.output_rate_hz, **params)
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"estimators[{label!r}] ({name}): {exc}") from None
-        if getattr(est.params, "gyro_step", "hold") != "hold":
+        if est.gyro_increments is not None:
             raise ValueError(f"estimators[{label!r}]: gyro_step={est.params.gyro_step!r} needs the chip's increments, "
                              "which the plug-in does not give; use gyro_step='hold'")
         self._feeds[label] = ("imu_flags" in inputs, speed)
@@ -254,7 +254,8 @@ class ImuPlugin:
         the general path."""
         if not self.fast_path or self.environment.disturbances:
             return ()
-        return tuple(label for label, est in self.estimators.items() if est.loop_arrays(0) is not None)
+        return tuple(label for label, est in self.estimators.items()
+                     if est.gyro_increments is None and est.loop_arrays(0) is not None)
 
     # ---- state -----------------------------------------------------------------------------
 
@@ -382,7 +383,7 @@ class ImuPlugin:
                                np.empty((0, 0)))
         in_loop, after = [], []
         for label, est in self.estimators.items():
-            arrays = est.loop_arrays(bound)
+            arrays = est.loop_arrays(bound) if est.gyro_increments is None else None  # (no increments here)
             if arrays is None:
                 after.append((label, est))
             else:

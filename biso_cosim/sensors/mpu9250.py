@@ -367,7 +367,7 @@ class MPU9250:
             if temp.size and not math.isfinite(temp[row]):
                 names.append("temperature_c")
             raise ValueError(f"{' and '.join(names)} must be finite: row {row} is not (nothing was simulated)")
-        return self._samples(bad, k, out, increments, subintervals)
+        return self.sample_views(out, k, increments, subintervals, status=bad)
 
     # -- the kernel's arrays (also for callers that run the kernel inside their own) ----
 
@@ -385,10 +385,15 @@ class MPU9250:
                 np.empty((bound, 3), dtype=np.uint8), np.empty(bound, dtype=np.int32))
 
     @staticmethod
-    def sample_views(out: tuple[np.ndarray, ...], k: int, increments: int = 0, subintervals: int = 0) -> ImuSamples:
+    def sample_views(out: tuple[np.ndarray, ...], k: int, increments: int = 0, subintervals: int = 0, *,
+                     status: int = -1) -> ImuSamples:
         """The first k samples the kernel wrote into ``out`` (``output_arrays``), as
-        ``ImuSamples`` of views of those arrays (copy them to keep them past the next run)."""
+        ``ImuSamples`` of views of those arrays (copy them to keep them past the next run).
+        ``status``: the kernel's (-1: k rows written; -2: k outputs were due but ``out`` had
+        room for fewer, a wrong ``output_bound``: RuntimeError)."""
         floats, words, status_bytes, flags = out
+        if status == -2:
+            raise RuntimeError(f"MPU9250: {k} outputs due but room for {flags.shape[0]} (output_bound is wrong)")
         B = flags.shape[0]
         inc = None
         if increments or subintervals:
@@ -412,15 +417,6 @@ class MPU9250:
             RawSamples(words[:k], status_bytes[:, 1:]),
             *(inc or ()),
         )
-
-    @staticmethod
-    def _samples(status: int, k: int, out: tuple[np.ndarray, ...], increments: int, subintervals: int) -> ImuSamples:
-        """``sample_views`` after the kernel's status (-1: k rows written; -2: too few rows)."""
-        if status == -2:
-            raise RuntimeError(f"MPU9250: {k} outputs due but room for {out[3].shape[0]} (output_bound is wrong)")
-        return MPU9250.sample_views(out, k, increments, subintervals)
-
-    _outputs = output_arrays  # (the name biso_cosim/cosim.py still calls)
 
     def _check_increments(self, increments: Any, subintervals: Any) -> tuple[int, int]:
         if isinstance(increments, bool) or not isinstance(increments, (int, np.integer)) or not 0 <= increments <= K.MAX_ORDER:

@@ -65,10 +65,10 @@ def apply_command(controls: ControlArrays, command: DriverCommand) -> None:
 # that the first samples show a car at rest rather than contacts finding their depth.
 _SETTLE_S = 3.0
 # Everything a step depends on (time, physics, warm start, controls, ...) except the sensor
-# history, which only carries each period's rows out (see ``_step_rows``); an int, which the
+# history, which only carries each period's rows out (see ``step_rows``); an int, which the
 # bindings take without an enum conversion per call.
 PHYSICS_STATE = int(mujoco.mjtState.mjSTATE_INTEGRATION) & ~int(mujoco.mjtState.mjSTATE_HISTORY)
-# The most steps one ``mj_step(m, d, nstep)`` call of ``_step_rows`` covers (the length of
+# The most steps one ``mj_step(m, d, nstep)`` call of ``step_rows`` covers (the length of
 # each sensor's history ring).
 _MAX_HISTORY_STEPS = 100
 
@@ -257,7 +257,7 @@ class VehicleSim:
             d.sensordata[:] = self._settled[1]
         self._restart_history()
         self.steps_done = 0
-        self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``_restep``)
+        self.periods_with_warnings = 0  # control periods in which MuJoCo warned (see ``restep``)
         self.driver.reset()
 
     # ------------------------------------------------------------------ stepping
@@ -298,11 +298,13 @@ class VehicleSim:
         """Ask the driver for the next control period's command from the current state, and
         apply it: one kernel from the sensors to the controls (``_measure``, the driver's
         ``command`` and ``apply`` in one call; the same numbers, tested)."""
-        out = self._drive()
+        out = self.apply_driver()
         return DriverCommand(steer_rad=float(out[0]), drive=float(out[1]), brake=float(out[2]))
 
-    def _drive(self) -> np.ndarray:
-        """``drive`` for callers that need no command record: the driver's output array."""
+    def apply_driver(self) -> np.ndarray:
+        """``drive`` for callers that need no command record (the co-simulation, each
+        period): the driver's output array (steer_rad, drive, brake), which the next call
+        overwrites."""
         driver = self.driver
         out = driver._out
         _drive_period(*driver._arrays, driver._params, driver.state.array, self._sensordata, self._sensor_layout,
@@ -317,11 +319,12 @@ class VehicleSim:
     def step(self, n: int | None = None) -> Truth:
         """Advance ``n`` physics steps (default: one control period) with the controls held;
         truth of those steps. The same steps as ``n`` calls of ``mj_step``, bit for bit."""
-        return self._truth(*self._step_rows(n))
+        return self.truth_of(*self.step_rows(n))
 
-    def _step_rows(self, n: int | None = None) -> tuple[np.ndarray, int]:
+    def step_rows(self, n: int | None = None) -> tuple[np.ndarray, int]:
         """``step`` without packing the truth: MuJoCo's sensordata after each of the ``n``
-        steps (a buffer that the next call overwrites) and the index of the first step."""
+        steps (a buffer that the next call overwrites) and the index of the first step
+        (``truth_of`` packs them)."""
         m, d = self.model, self.data
         n = self.steps_per_control if n is None else n
         rows = self._rows if n == self._rows.shape[0] else np.empty((n, m.nsensordata))
@@ -334,7 +337,7 @@ class VehicleSim:
             outcome = _history_rows(self._history, self._history_layout, k, t_start, self._warnings,
                                     self._sensordata, rows[done:done + k])
             if outcome != HISTORY_READ:
-                self._restep(rows, outcome)
+                self.restep(rows, outcome)
                 break
             done += k
         first = self.steps_done
@@ -343,16 +346,16 @@ class VehicleSim:
             self.row_fault(rows, first)
         return rows, first
 
-    def _step_period(self) -> tuple[np.ndarray | None, int, float]:
+    def step_period(self) -> tuple[np.ndarray | None, int, float]:
         """A control period as one ``mj_step(m, d, n)`` call whose sensordata rows stay in
-        the sensors' history for the caller to read (``_history_rows`` into ``_rows``; the
-        co-simulation's period kernel does, saving a kernel call), or ``_restep`` when that
-        fails. Returns (None, index of the first step, time at the period's start); a period
-        longer than the history, or any period while ``row_fault`` is set, is stepped by
-        ``_step_rows`` instead: (its rows, first, 0)."""
+        the sensors' history for the caller to read (``_history_rows`` into
+        ``history_arrays.rows``; the co-simulation's period kernel does, saving a kernel
+        call), or ``restep`` when that fails. Returns (None, index of the first step, time at
+        the period's start); a period longer than the history, or any period while
+        ``row_fault`` is set, is stepped by ``step_rows`` instead: (its rows, first, 0)."""
         n = self.steps_per_control
         if n > self._history_steps or self.row_fault is not None:
-            return (*self._step_rows(), 0.0)
+            return (*self.step_rows(), 0.0)
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
         t_start = d.time
@@ -361,9 +364,9 @@ class VehicleSim:
         self.steps_done += n
         return None, first, t_start
 
-    def _restep(self, rows: np.ndarray, outcome: int) -> np.ndarray:
-        """The rows of the steps since the last period's start, after ``_history_rows`` could
-        not read them (``outcome``): MuJoCo warned (e.g. a bad velocity, on which it resets
+    def restep(self, rows: np.ndarray, outcome: int) -> np.ndarray:
+        """The rows of the steps since the last period's start, into ``rows`` (and returned),
+        after ``_history_rows`` could not read them (``outcome``, its code): MuJoCo warned (e.g. a bad velocity, on which it resets
         the data and goes on, history and all), or the clock was set back by hand. The period
         is stepped again from its start one mj_step at a time (the same steps), and the
         history rings start afresh."""
@@ -376,6 +379,16 @@ class VehicleSim:
         self._warnings[:] = 0
         self._restart_history()
         return rows
+
+    def restore_physics(self, physics: np.ndarray, sensordata: np.ndarray, steps_done: int) -> None:
+        """Restore MuJoCo's state ``physics`` (``mj_getState(PHYSICS_STATE)``), the sensor data
+        as it was then (it belongs to the last step's start, and the driver reads it: restored,
+        not recomputed) and the count of steps, with the sensors' history started afresh (a
+        restored state, e.g. ``CoSimulation.set_state``)."""
+        mujoco.mj_setState(self.model, self.data, physics, PHYSICS_STATE)
+        self.data.sensordata[:] = sensordata
+        self._restart_history()
+        self.steps_done = steps_done
 
     def _restart_history(self) -> None:
         """Start every sensor's history ring afresh just before the current time, holding the
@@ -393,9 +406,11 @@ class VehicleSim:
 
     def current_truth(self) -> Truth:
         """The truth of the current state as one row (at the time of the last step's start)."""
-        return self._truth(self.data.sensordata[None, :].copy(), max(self.steps_done - 1, 0))
+        return self.truth_of(self.data.sensordata[None, :].copy(), max(self.steps_done - 1, 0))
 
-    def _truth(self, buf: np.ndarray, first_step: int) -> Truth:
+    def truth_of(self, buf: np.ndarray, first_step: int) -> Truth:
+        """The truth of sensordata rows ``buf`` (n, nsensordata; ``step_rows``') whose first
+        row is the step of index ``first_step``, packed (``TRUTH_LAYOUT``)."""
         packed = np.empty((buf.shape[0], Truth.WIDTH))
         _pack_rows(buf, self._gather, first_step, self.physics_rate_hz, packed)
         return Truth(packed)
