@@ -107,13 +107,6 @@ class Truth:
             raise ValueError(f"packed truth must have shape (n, {self.WIDTH}), got {packed.shape}")
         self.packed = packed
 
-    @classmethod
-    def _of(cls, packed: np.ndarray) -> "Truth":
-        """``Truth(packed)`` for an array known to be of the right shape (no check: for the loop)."""
-        truth = object.__new__(cls)
-        truth.packed = packed
-        return truth
-
     def __len__(self) -> int:
         return self.packed.shape[0]
 
