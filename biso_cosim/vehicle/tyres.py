@@ -34,6 +34,7 @@ import tempfile
 from dataclasses import asdict, dataclass, fields
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -130,12 +131,7 @@ class TyreParams:
 
     def check(self) -> None:
         """ValueError naming the parameter and its range for a value out of physical range."""
-        for f in fields(self):
-            value = getattr(self, f.name)
-            lo, hi = _RANGES[f.name]
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"TyreParams.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
-                                 f"got {value!r}")
+        _check_ranges(self, _RANGES)
 
     def config(self, chassis: "ChassisParams | None" = None) -> dict[str, str]:
         """The plugin instance's configuration: every parameter by name, exactly (repr), with
@@ -215,12 +211,7 @@ class ChassisParams:
 
     def check(self) -> None:
         """ValueError naming the parameter and its range for a value out of physical range."""
-        for f in fields(self):
-            value = getattr(self, f.name)
-            lo, hi = _CHASSIS_RANGES[f.name]
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"ChassisParams.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
-                                 f"got {value!r}")
+        _check_ranges(self, _CHASSIS_RANGES)
 
     @staticmethod
     def table() -> str:
@@ -423,3 +414,13 @@ def _set_brakes(spec, chassis: ChassisParams) -> None:
         gain[2] = -4.0 * share * kv[0]
         actuator.gainprm = gain
         actuator.forcerange = [-share * chassis.brake_torque_nm, share * chassis.brake_torque_nm]
+
+
+def _check_ranges(record: Any, ranges: dict[str, tuple[float, float]]) -> None:
+    """ValueError naming the first field of the parameter record outside its (low, high)."""
+    for f in fields(record):
+        value = getattr(record, f.name)
+        lo, hi = ranges[f.name]
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and lo <= value <= hi):
+            raise ValueError(f"{type(record).__name__}.{f.name} must be in [{lo:g}, {hi:g}] {f.metadata['unit']}, "
+                             f"got {value!r}")
