@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -50,10 +51,13 @@ def mounting_matrix(mounting: Any) -> np.ndarray:
     if not np.all(np.isfinite(m)):
         raise ValueError("mounting must be finite")
     if m.shape == (4,):
-        norm = float(np.linalg.norm(m))
+        w, x, y, z = (float(c) for c in m)
+        # summed left to right, as the C sensor does (np.linalg.norm's reduction order depends
+        # on the numpy build and moves the last bit)
+        norm = math.sqrt(w * w + x * x + y * y + z * z)
         if abs(norm - 1.0) > 1e-6:
             raise ValueError(f"mounting quaternion q_body_chip must have unit norm, got norm {norm:.9g}")
-        w, x, y, z = m / norm
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
         return np.array(
             [
                 [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
