@@ -606,10 +606,8 @@ class Terrain:
                     if isinstance(value, bool) or not isinstance(value, int):
                         raise ValueError(f"{label} ({kind}): field 'seed' must be an integer, got {value!r}")
                     values[key] = value
-                elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                    raise ValueError(f"{label} ({kind}): field {key!r} must be a number, got {value!r}")
                 else:
-                    values[key] = float(value)
+                    values[key] = _field_number(value, f"{label} ({kind})", key)
             feature = cls(**values)
             try:
                 feature.check()
@@ -645,10 +643,8 @@ class Terrain:
                     if isinstance(value, bool) or not isinstance(value, (str, int, float)):
                         raise ValueError(f"{label}: surface must be a name or a friction scale, got {value!r}")
                     values[key] = value if isinstance(value, str) else float(value)
-                elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                    raise ValueError(f"{label}: field {key!r} must be a number, got {value!r}")
                 else:
-                    values[key] = float(value)
+                    values[key] = _field_number(value, label, key)
             patch = SurfacePatch(**values)
             try:
                 patch.check()
@@ -656,3 +652,10 @@ class Terrain:
                 raise ValueError(f"{label}: {exc}") from None
             out.append(patch)
         return tuple(out)
+
+
+def _field_number(value: object, label: str, key: str) -> float:
+    """A route file's numeric field as a float; ValueError naming the entry and the field."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{label}: field {key!r} must be a number, got {value!r}")
+    return float(value)
