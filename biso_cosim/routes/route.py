@@ -9,9 +9,9 @@ whose origin is the site's latitude and longitude; unknown keys are errors)::
     excites = "one line"             # optional: what it excites (turns, grades, bank...)
     closed = true                    # required: the route ends where it starts
     laps = 1                         # optional, closed routes only: drive the loop N times
-    tyres = "coulomb"                # optional: the car's tyre model, "coulomb" (MuJoCo's
-                                     # friction on sphere wheels, the default) or
-                                     # "magic_formula" (slip-based, biso_cosim.vehicle.tyres)
+    tyres = "magic_formula"          # optional: the car's tyre model, "magic_formula"
+                                     # (slip-based, biso_cosim.vehicle.tyres; the default)
+                                     # or "coulomb" (MuJoCo's friction on sphere wheels)
     surface = "dry"                  # optional, magic_formula tyres only: the road's friction,
                                      # "dry", "wet", "gravel", "snow", "ice" or a scale in
                                      # (0, 1.5] of dry asphalt's (vehicle.tyres.SURFACES)
@@ -90,6 +90,7 @@ import numpy as np
 from biso_cosim.routes.limits import MAX_UNROUNDED_TURN_RAD, car_limits
 from biso_cosim.routes.path import Path, densify, speed_profile
 from biso_cosim.vehicle.terrain import Terrain
+from biso_cosim.vehicle.tyres import DEFAULT_TYRE_MODEL
 
 __all__ = ["Route", "Waypoint", "DrivingLimits", "Site", "Stop", "GnssOutageZone", "RouteWarning", "parse_route",
            "read_route_file"]
@@ -176,7 +177,7 @@ class Route:
     terrain: Terrain = field(default_factory=Terrain)
     gnss_outages: tuple[GnssOutageZone, ...] = ()
     source: str = ""
-    tyres: str = "coulomb"
+    tyres: str = DEFAULT_TYRE_MODEL
     """The tyre model the car drives this route with (``vehicle.tyres.TYRE_MODELS``)."""
     surface: str | float = "dry"
     """The road surface (a name of ``vehicle.tyres.SURFACES`` or a friction scale); anything but
@@ -560,7 +561,7 @@ def _tyres_and_surface(data: dict, where: str) -> tuple[str, str | float]:
     may be for a bad value."""
     from biso_cosim.vehicle.tyres import SURFACES, TYRE_MODELS, surface_friction
 
-    tyres = data.get("tyres", "coulomb")
+    tyres = data.get("tyres", DEFAULT_TYRE_MODEL)
     if tyres not in TYRE_MODELS or not isinstance(tyres, str):
         raise ValueError(f"{where}: tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
     surface = data.get("surface", "dry")

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from biso_cosim.vehicle.terrain import HeightField, Terrain
+from biso_cosim.vehicle.tyres import DEFAULT_TYRE_MODEL, TYRE_MODELS
 
 __all__ = ["CAR_XML", "CarIndex", "build_model", "car_spec", "vehicle_parameters"]
 
@@ -32,16 +33,17 @@ def car_spec() -> mujoco.MjSpec:
 
 
 def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: int = 0,
-                tyres: str = "coulomb", tyre_params=None, chassis_params=None,
+                tyres: str = DEFAULT_TYRE_MODEL, tyre_params=None, chassis_params=None,
                 surface: str | float = "dry") -> tuple[mujoco.MjModel, list[HeightField]]:
     """Compile the car on ``terrain``: the ground plane plus one height field per patch.
 
-    ``tyres``: ``"coulomb"`` (the default: MuJoCo's Coulomb friction on the sphere wheels) or
-    ``"magic_formula"`` (slip-based tyre forces of ``vehicle.tyres``, a C engine plugin, with
+    ``tyres``: ``"magic_formula"`` (the default, ``tyres.DEFAULT_TYRE_MODEL``: slip-based tyre
+    forces of ``vehicle.tyres``, a C engine plugin, with
     ``tyre_params``, default ``tyres.TYRES``, on a road of friction ``surface``: a name of
     ``tyres.SURFACES`` or a scale; only with the magic_formula tyres; and ``chassis_params``,
     default ``tyres.CHASSIS``: the brakes' torque and balance, the ABS, the compliance steer;
-    the terrain's surface patches, ``Terrain.surfaces``, set the friction where they lie).
+    the terrain's surface patches, ``Terrain.surfaces``, set the friction where they lie) or
+    ``"coulomb"`` (MuJoCo's Coulomb friction on the sphere wheels: the car before issue 26).
 
     Returns the model and the sampled patches. The magnetic field of the model stays zero:
     the vehicle's magnetic environment is modelled by :mod:`biso_cosim.sensors`. With
@@ -52,7 +54,7 @@ def build_model(terrain: Terrain, *, timestep_s: float = 0.001, history_steps: i
         raise ValueError(f"timestep_s must be > 0, got {timestep_s}")
     if isinstance(history_steps, bool) or not isinstance(history_steps, int) or history_steps < 0:
         raise ValueError(f"history_steps must be an int >= 0, got {history_steps!r}")
-    if tyres not in ("coulomb", "magic_formula"):
+    if tyres not in TYRE_MODELS:
         raise ValueError(f"tyres must be 'coulomb' or 'magic_formula', got {tyres!r}")
     if tyres == "coulomb" and (tyre_params is not None or chassis_params is not None or surface != "dry"):
         raise ValueError("tyre_params, chassis_params and surface apply to tyres='magic_formula' only")

@@ -4,8 +4,9 @@
 ``condim`` 1 (MuJoCo's contact then carries the normal load only) and adds an instance of
 the plugin ``biso.tyres`` (``vehicle/native/tyres.c``, whose header gives the method: Pacejka's
 Magic Formula with combined slip and load sensitivity, first-order relaxation of both slips,
-low-speed damping, the vertical load from MuJoCo's solved contacts). The default,
-``tyres="coulomb"``, is the car as it was: spheres with Coulomb friction.
+low-speed damping, the vertical load from MuJoCo's solved contacts). It is the default
+(``DEFAULT_TYRE_MODEL``); ``tyres="coulomb"`` is the car as it was before issue 26: spheres
+with MuJoCo's Coulomb friction, which steer kinematically.
 
 The plugin is C, compiled on first use with the system C compiler (the one the native FMUs
 use, ``biso_cosim.fmu.native.compiler``) into a cache directory (``$BISO_COSIM_CACHE``, else
@@ -39,15 +40,19 @@ from typing import Any
 import numpy as np
 
 from biso_cosim.estimators._base import param
+from biso_cosim.units import G0
 
-__all__ = ["TyreParams", "TYRES", "ChassisParams", "CHASSIS", "SURFACES", "TYRE_MODELS", "PLUGIN_NAME", "plugin_library", "load_plugin",
-           "magic_formula", "tyre_states", "STATE_STRIDE", "surface_friction"]
+__all__ = ["TyreParams", "TYRES", "ChassisParams", "CHASSIS", "SURFACES", "TYRE_MODELS", "DEFAULT_TYRE_MODEL", "PLUGIN_NAME", "plugin_library", "load_plugin",
+           "magic_formula", "rear_slip_gradient_rad_per_g", "tyre_states", "STATE_STRIDE", "surface_friction"]
 
 PLUGIN_NAME = "biso.tyres"
 INSTANCE_NAME = "tyres"
 """The plugin instance's name in a car model."""
 TYRE_MODELS = ("coulomb", "magic_formula")
-"""``coulomb``: MuJoCo's friction on sphere wheels (the default); ``magic_formula``: this module."""
+"""``coulomb``: MuJoCo's friction on sphere wheels; ``magic_formula``: this module."""
+DEFAULT_TYRE_MODEL = "magic_formula"
+"""The tyre model of the car wherever none is named (``build_model``, ``VehicleSim``, a route
+file without ``tyres``, and through them the CLI, the environments and the FMUs)."""
 
 _BOOK = "Pacejka, Tyre and Vehicle Dynamics (2nd ed. 2006 / 3rd ed. 2012), Appendix 3, Table A3.1"
 _TYRE = "205/60 R15 91V car tyre at 2.2 bar, F_z0 = 4000 N (the book's MF parameter set of the class)"
@@ -347,6 +352,26 @@ def magic_formula(fz_n: float, slip_ratio: float, lateral_slip: float, *, params
     lib.biso_tyres_magic_formula(p.ctypes.data_as(dp), float(fz_n), float(slip_ratio), float(lateral_slip),
                                  float(friction_scale), ctypes.byref(fx), ctypes.byref(fy))
     return fx.value, fy.value
+
+
+def rear_slip_gradient_rad_per_g(vehicle: dict[str, float], tyres: str = DEFAULT_TYRE_MODEL,
+                                 params: TyreParams | None = None) -> float:
+    """D_r, the rear axle's steady-state slip angle per g of lateral acceleration, rad: the
+    static load of a rear tyre over its cornering stiffness, W_r/C_αr (steady-state
+    single-track model, Gillespie, Fundamentals of Vehicle Dynamics, 1992, ch. 6), with
+    C_αr = K_yα = p_Ky1·F_z0·sin(2·atan(F_z/(p_Ky2·F_z0))) of ``params`` (default ``TYRES``;
+    Pacejka 2012 §4.3). ``vehicle`` holds ``model.vehicle_parameters``' total mass, wheelbase
+    and centre-of-mass position. 0 for the coulomb tyres, which steer kinematically (their
+    rear axle does not slide sideways below the sudden slide). 0.0776 rad/g (4.45 °/g) for the
+    reference car on ``TYRES``; the 40 m ISO 4138 circle measures 4.6-4.9 °/g
+    (docs/vehicle.md)."""
+    if tyres not in TYRE_MODELS:
+        raise ValueError(f"tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
+    if tyres == "coulomb":
+        return 0.0
+    t = TYRES if params is None else params
+    w_r = vehicle["cg_behind_front_axle_m"] / vehicle["wheelbase_m"] * vehicle["total_mass_kg"] * G0 / 2.0
+    return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
 
 
 STATE_STRIDE = 17
