@@ -8,10 +8,11 @@ rear axle does not slide sideways) and once with ``tyres = "magic_formula"`` (sl
 tyres on dry asphalt, ``vehicle.tyres``); the same route otherwise (``Route.tyres``). The
 estimators biso_plus (with wheel odometry at the rear axle), VQF and imufusion
 (``compare.run_method``) run on the same samples of each drive; biso_plus twice: as
-``compare`` runs it (``rear_slip_gradient_rad_per_g`` = 0, the rear axle assumed not to slide
-sideways) and with the rear axle's slip angle per g of the car's tyres, D_r = W_r/C_αr
-(the single-track model, Gillespie 1992, ch. 6: the rear tyres' static load over their
-cornering stiffness, Pacejka 2012 §4.3; 0 for the coulomb tyres, which steer kinematically).
+``compare`` runs it, with the rear axle's slip angle per g of the car's tyres, D_r = W_r/C_αr
+(``rear_slip_gradient_rad_per_g``, which the car gives it: ``VehicleSim.estimator_defaults``;
+the single-track model, Gillespie 1992, ch. 6: the rear tyres' static load over their
+cornering stiffness, Pacejka 2012 §4.3; 0 for the coulomb tyres, which steer kinematically),
+and with D_r = 0 (the rear axle assumed not to slide sideways).
 
 Printed per route and tyre model: the sideslip angle of the rear axle's centre in bends
 (β = atan2(v_y, v_x) of its velocity in body axes, from the truth at the sensor's samples;
@@ -37,32 +38,20 @@ import time
 import numpy as np
 
 from biso_cosim.compare import Dataset, run_method
+from biso_cosim.cosim import CoSimulation
 from biso_cosim.estimators import make_estimator
-from biso_cosim.cosim import run_route
 from biso_cosim.metrics import ANGLES, angle_errors_deg
 from biso_cosim.routes import load_route, route_names
 from biso_cosim.vehicle.model import car_spec, vehicle_parameters
-from biso_cosim.vehicle.tyres import TYRES as TYRE_PARAMS
+from biso_cosim.vehicle.tyres import rear_slip_gradient_rad_per_g
 
 METHODS = ("biso_plus", "vqf", "imufusion")
 """The three compared; biso_plus with the rear axle's slip angle of the tyres (D_r)."""
 NO_SIDESLIP = "biso_plus_dr0"
-"""biso_plus as ``compare.run_method`` runs it: D_r = 0."""
+"""biso_plus with D_r = 0."""
 TYRES = ("coulomb", "magic_formula")
 BEND_SPEED_MPS = 3.0
 BEND_LATERAL_MPS2 = 1.0
-G0 = 9.80665
-
-
-def rear_slip_gradient_rad_per_g(tyres: str) -> float:
-    """The rear axle's steady-state slip angle per g of lateral acceleration, W_r/C_αr: the
-    load of a rear tyre at rest over its cornering stiffness K_yα = p_Ky1 F_z0 sin(2 atan(F_z /
-    (p_Ky2 F_z0))) (Pacejka 2012 §4.3; Gillespie 1992, ch. 6); 0 for the coulomb tyres."""
-    if tyres == "coulomb":
-        return 0.0
-    p, t = vehicle_parameters(), TYRE_PARAMS
-    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G0 / 2.0
-    return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
 
 
 def _rotate_to_body(q_wb: np.ndarray, v_w: np.ndarray) -> np.ndarray:
@@ -98,29 +87,27 @@ def rear_axle_sideslip(truth) -> dict[str, float]:
 def drive(route, duration_s: float, seed: int) -> tuple[Dataset, object, bool]:
     """The drive's dataset, built as ``compare.route_dataset`` builds it (wheel odometry at
     the rear axle for biso_plus), and its truth at the samples."""
-    res = run_route(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
-    model = car_spec().compile()
-    radius = vehicle_parameters(model)["wheel_radius_m"]
+    sim = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
+    res = sim.run()
+    radius = sim.vehicle.index.wheel_radius_m
     odometry = 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius
     gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(res.sensor["registers"].get("gyro_fs_sel", 0))]
-    lever = model.site("rear_axle").pos - model.site("imu").pos
     data = Dataset(name=route.name, kind="route", seed=seed, fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
                    gyro_b=res.imu.gyro_b, accel_b=res.imu.accel_b, mag_b=res.imu.mag_b, q_true=res.truth.q_wb,
                    declination_rad=math.radians(res.site["declination_deg"]), speed_mps=odometry,
-                   speed_point_b_m=tuple(float(x) for x in lever), gyro_range_rad_s=math.radians(gyro_fs))
+                   vehicle_params=sim.vehicle.estimator_defaults(), gyro_range_rad_s=math.radians(gyro_fs))
     return data, res.truth, bool(res.completed)
 
 
 def measure(route_name: str, tyres: str, duration_s: float, seed: int) -> dict:
     route = dataclasses.replace(load_route(route_name), tyres=tyres)
     data, truth, completed = drive(route, duration_s, seed)
-    d_r = rear_slip_gradient_rad_per_g(tyres)
     row = {"route": route_name, "tyres": tyres, "completed": completed, "sideslip": rear_axle_sideslip(truth),
-           "rear_slip_gradient_rad_per_g": d_r, "errors": {}}
+           "rear_slip_gradient_rad_per_g": data.vehicle_params["rear_slip_gradient_rad_per_g"], "errors": {}}
     est = make_estimator("biso_plus", data.fs_hz, declination_rad=data.declination_rad,
-                         speed_point_b_m=data.speed_point_b_m, rear_slip_gradient_rad_per_g=d_r)
-    outputs = {"biso_plus": est.update(data.gyro_b, data.accel_b, data.mag_b, speed_mps=data.speed_mps).q_wb,
-               NO_SIDESLIP: run_method("biso_plus", data)}
+                         **(data.vehicle_params | {"rear_slip_gradient_rad_per_g": 0.0}))
+    outputs = {"biso_plus": run_method("biso_plus", data),
+               NO_SIDESLIP: est.update(data.gyro_b, data.accel_b, data.mag_b, speed_mps=data.speed_mps).q_wb}
     for m in METHODS[1:]:
         outputs[m] = run_method(m, data)
     for m, q in outputs.items():
@@ -136,7 +123,7 @@ def table(rows: list[dict], duration_s: float, seed: int) -> str:
     label = {"biso_plus": "biso_plus (D_r)", NO_SIDESLIP: "biso_plus D_r = 0"}
     head = "| route | tyres | rear-axle β in bends RMS / max ° | bends % | " + \
         " | ".join(f"{label.get(m, m)} roll / pitch / heading RMS °" for m in shown) + " |"
-    d_r = rear_slip_gradient_rad_per_g("magic_formula")
+    d_r = rear_slip_gradient_rad_per_g(vehicle_parameters(), "magic_formula")
     lines = [f"Each route's first {duration_s:g} s, sensor seed {seed}; D_r = {d_r:.4f} rad/g "
              f"({math.degrees(d_r):.2f} °/g) with magic_formula, 0 with coulomb (biso_plus D_r = 0 the same "
              "numbers there).", "", head, "|---|---|---|---|" + "---|" * len(shown)]

@@ -15,8 +15,10 @@ Peers (optional dependencies, extra ``compare``):
 Both report heading to magnetic north; their output is turned to true north with the site's
 declination, which our estimators receive as a parameter. ``biso_plus`` gets the speed of
 the rear axle from wheel odometry (mean rear wheel rate × wheel radius, so with wheel slip)
-and the position of the rear axle relative to the IMU; ``biso_plus_nospeed`` is the same
-without the speed input. Test motions have no speed.
+and, with it, the car's parameters it takes from its vehicle (``Estimator.vehicle_params``,
+``VehicleSim.estimator_defaults``): the position of the rear axle relative to the IMU and
+the rear axle's slip angle per g of the route's tyres, D_r = W_r/C_αr (0 for the coulomb
+tyres); ``biso_plus_nospeed`` is the same without the speed input (and without them). Test motions have no speed.
 
 Errors are estimate minus truth in roll, pitch and compass heading (``biso_cosim.metrics``),
 RMS and largest magnitude per dataset, over all samples.
@@ -29,14 +31,17 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
 from biso_cosim import peers
-from biso_cosim.estimators import make_estimator
+from biso_cosim.estimators import estimator_vehicle_params, make_estimator
 from biso_cosim.metrics import ANGLES, angle_errors_deg
 from biso_cosim.output import write_text_atomic
+
+if TYPE_CHECKING:
+    from biso_cosim.routes import Route
 
 __all__ = ["Dataset", "route_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
            "DEFAULT_MOTIONS", "format_table"]
@@ -64,34 +69,28 @@ class Dataset:
     q_true: np.ndarray
     declination_rad: float
     speed_mps: np.ndarray | None = None
-    speed_point_b_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    vehicle_params: dict = field(default_factory=dict)
+    """The vehicle's values of the estimators' ``vehicle_params`` (``VehicleSim.estimator_defaults``:
+    where the speed is measured, the rear axle's slip angle per g); empty for test motions."""
     gyro_range_rad_s: float | None = None
     info: dict = field(default_factory=dict)
 
 
-def _rear_axle_from_imu() -> tuple[float, float, float]:
-    """Rear-axle centre relative to the IMU site, body axes, read from the car's MJCF."""
-    from biso_cosim.vehicle.model import car_spec
+def route_dataset(route: str | Route, seed: int = 0, duration_s: float | None = None) -> Dataset:
+    """Drive ``route`` in the co-simulation (sensor seed ``seed``) and keep its samples, with
+    the car's parameters that estimators take from their vehicle."""
+    from biso_cosim.cosim import CoSimulation
 
-    model = car_spec().compile()
-    d = model.site("rear_axle").pos - model.site("imu").pos
-    return tuple(float(x) for x in d)
-
-
-def route_dataset(route: str, seed: int = 0, duration_s: float | None = None) -> Dataset:
-    """Drive ``route`` in the co-simulation (sensor seed ``seed``) and keep its samples."""
-    from biso_cosim.cosim import run_route
-    from biso_cosim.vehicle.model import vehicle_parameters
-
-    res = run_route(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
-    radius = vehicle_parameters()["wheel_radius_m"]
+    sim = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
+    res = sim.run()
+    radius = sim.vehicle.index.wheel_radius_m
     odometry = 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius
     gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(res.sensor["registers"].get("gyro_fs_sel", 0))]
     return Dataset(
-        name=route, kind="route", seed=seed, fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
+        name=route if isinstance(route, str) else route.name, kind="route", seed=seed, fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
         gyro_b=res.imu.gyro_b, accel_b=res.imu.accel_b, mag_b=res.imu.mag_b, q_true=res.truth.q_wb,
         declination_rad=math.radians(res.site["declination_deg"]), speed_mps=odometry,
-        speed_point_b_m=_rear_axle_from_imu(), gyro_range_rad_s=math.radians(gyro_fs),
+        vehicle_params=sim.vehicle.estimator_defaults(), gyro_range_rad_s=math.radians(gyro_fs),
         info={"completed": res.completed, "field_enu_ut": res.site["field_enu_ut"]})
 
 
@@ -120,8 +119,8 @@ def _ours(name: str, use_speed: bool = False, **fixed: Any) -> Callable[[Dataset
     def run(d: Dataset) -> np.ndarray:
         params = dict(fixed, declination_rad=d.declination_rad)
         inputs = {}
-        if use_speed and d.speed_mps is not None:
-            params["speed_point_b_m"] = d.speed_point_b_m
+        if use_speed and d.speed_mps is not None:  # the vehicle's parameters go with its speed
+            params |= {p: d.vehicle_params[p] for p in estimator_vehicle_params(name) if p in d.vehicle_params}
             inputs["speed_mps"] = d.speed_mps
         est = make_estimator(name, d.fs_hz, **params)
         return est.update(d.gyro_b, d.accel_b, d.mag_b, **inputs).q_wb

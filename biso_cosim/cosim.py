@@ -323,7 +323,7 @@ class CoSimulation:
                 continue
             params = dict(spec.params)
             params.setdefault("declination_rad", self.earth.declination_rad)
-            est = make_estimator(spec.name, self.imu.output_rate_hz, **(params | self._speed_geometry(spec.name, params)))
+            est = make_estimator(spec.name, self.imu.output_rate_hz, **(self._vehicle_defaults(spec.name) | params))
             self.estimators[spec.key] = est
         self._wants_odometry = any("speed_mps" in getattr(e, "inputs", ()) for e in self.estimators.values())
         self.n_chunks = int(math.ceil(self.duration_s * self.vehicle.control_rate_hz - 1e-9))
@@ -339,14 +339,14 @@ class CoSimulation:
         self._reset_navigators()
         self._reset_logs()
 
-    def _speed_geometry(self, name: str, params: Mapping[str, Any]) -> dict[str, Any]:
-        """Where the wheel-odometry speed is measured, for estimators that take a speed."""
-        from biso_cosim.estimators import estimator_inputs
+    def _vehicle_defaults(self, name: str) -> dict[str, Any]:
+        """The car's values of the parameters the estimator ``name`` takes from its vehicle
+        (``Estimator.vehicle_params``; ``VehicleSim.estimator_defaults``): where the wheel
+        odometry's speed is measured, the rear axle's slip angle per g of the car's tyres."""
+        from biso_cosim.estimators import estimator_vehicle_params
 
-        if "speed_mps" not in estimator_inputs(name) or "speed_point_b_m" in params:
-            return {}
-        ix = self.vehicle.index
-        return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b)}
+        known = self.vehicle.estimator_defaults()
+        return {p: known[p] for p in estimator_vehicle_params(name) if p in known}
 
     def odometry_mps(self, truth: Truth) -> np.ndarray:
         """The wheel-odometry speed (m/s) at each row of ``truth``, as the estimators that

@@ -88,7 +88,9 @@ class RunLogInputs:
 def run_log_inputs(sim, result) -> RunLogInputs:
     """What ``sim`` (a :class:`biso_cosim.cosim.CoSimulation`) fed each estimator over the
     run ``result``, for its log and for summary.json's ``estimator_inputs``: the parameters
-    the run set (declination, the point where the wheel odometry's speed is measured), the
+    the run set (declination, and the vehicle's parameters the estimator takes from the car,
+    ``Estimator.vehicle_params``: where the wheel odometry's speed is measured, the rear
+    axle's slip angle per g), the
     log columns of each per-sample input (``speed_mps``, ``imu_flags``, ``dtheta_b``,
     ``gnss``) and the number of fixes logged. ``biso-cosim run`` and the campaigns write
     their logs with it."""
@@ -109,7 +111,7 @@ def run_log_inputs(sim, result) -> RunLogInputs:
         params = getattr(est, "params", None)
         takes = tuple(getattr(est, "inputs", ()))
         entry: dict = {"params": {}, "columns": {}}
-        for name in ("declination_rad", "speed_point_b_m"):
+        for name in ("declination_rad", *getattr(est, "vehicle_params", ())):
             if params is not None and hasattr(params, name):
                 value = getattr(params, name)
                 entry["params"][name] = list(value) if isinstance(value, tuple) else value

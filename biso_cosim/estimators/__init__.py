@@ -33,6 +33,7 @@ __all__ = [
     "make_estimator",
     "estimator_names",
     "estimator_inputs",
+    "estimator_vehicle_params",
     "estimate_attitude",
     "describe_estimator",
     "params_markdown",
@@ -92,6 +93,13 @@ def estimator_inputs(name: str) -> tuple[str, ...]:
     """Optional per-sample inputs the estimator ``name`` takes besides gyro, accel and mag
     (e.g. ``("speed_mps",)``)."""
     return tuple(_entry(name)[0].inputs)
+
+
+def estimator_vehicle_params(name: str) -> tuple[str, ...]:
+    """Parameters of the estimator ``name`` that the vehicle it rides on gives when the user
+    sets none (``Estimator.vehicle_params``, e.g. ``("speed_point_b_m",)``)."""
+    cls, fixed, _ = _entry(name)
+    return tuple(p for p in cls.vehicle_params if p not in fixed)
 
 
 def describe_estimator(name: str) -> dict[str, Any]:

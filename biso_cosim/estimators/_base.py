@@ -328,6 +328,11 @@ class Estimator:
     Params: ClassVar[type]
     state_layout: ClassVar[tuple[tuple[str, int], ...]]
     inputs: ClassVar[tuple[str, ...]] = ()
+    vehicle_params: ClassVar[tuple[str, ...]] = ()
+    """Parameters (names of ``Params``) whose value is a property of the vehicle the estimator
+    rides on, e.g. ``speed_point_b_m``: where the speed input is measured. Riding on the
+    co-simulation's car (``biso_cosim.cosim``, ``compare``) each of them the user has not set
+    takes the car's value (``VehicleSim.estimator_defaults``, which names the ones it knows)."""
     estimates_bias: ClassVar[bool] = False
     loop_kernel: ClassVar[Callable | None] = None
     """The estimator's kernel in the co-simulation's period call (``biso_cosim.loop``): a

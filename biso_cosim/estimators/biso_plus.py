@@ -1213,6 +1213,7 @@ class BisoPlusEstimator(Estimator):
     Params = BisoPlusParams
     state_layout = STATE_LAYOUT
     inputs = ("speed_mps", "imu_flags")
+    vehicle_params = ("speed_point_b_m", "rear_slip_gradient_rad_per_g")
     estimates_bias = True
     loop_kernel = _biso_plus_loop
     retune_kernel = biso_plus_derive

@@ -9,7 +9,7 @@ a chunk is the truth at ``t0 + k·dt``, where ``t0`` was the simulation time bef
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import mujoco
 import numpy as np
@@ -138,13 +138,15 @@ class VehicleSim:
     """The reference car on ``route``'s terrain, driven by the scripted driver.
 
     ``tyres`` and ``surface`` (see ``model.build_model``) default to the route's
-    (``Route.tyres``, ``Route.surface``: a route file may name them; "coulomb" and "dry"
-    otherwise); an explicit ``tyres`` with the route's surface only if it is "magic_formula".
+    (``Route.tyres``, ``Route.surface``: a route file may name them; "magic_formula"
+    (``tyres.DEFAULT_TYRE_MODEL``) and "dry" otherwise); an explicit ``tyres`` with the route's
+    surface only if it is "magic_formula".
     """
 
     def __init__(self, route: Route, *, physics_rate_hz: float = 1000.0, control_rate_hz: float = 50.0,
                  driver_params: DriverParams | None = None, drivetrain: DrivetrainParams = DRIVETRAIN,
-                 tyres: str | None = None, tyre_params=None, surface: str | float | None = None):
+                 tyres: str | None = None, tyre_params=None, chassis_params=None,
+                 surface: str | float | None = None):
         if not physics_rate_hz > 0.0:
             raise ValueError(f"physics_rate_hz must be > 0, got {physics_rate_hz}")
         if not control_rate_hz > 0.0:
@@ -159,7 +161,7 @@ class VehicleSim:
         self.steps_per_control = int(round(ratio))
         self._history_steps = min(self.steps_per_control, _MAX_HISTORY_STEPS)
         # tyres: "coulomb" or "magic_formula" (vehicle.tyres), see build_model; not given, the
-        # route's (``Route.tyres``, "coulomb" unless its file names one), and the route's
+        # route's (``Route.tyres``, "magic_formula" unless its file names one), and the route's
         # surface with the magic_formula tyres
         if tyres is None:
             tyres = route.tyres
@@ -167,9 +169,11 @@ class VehicleSim:
             surface = route.surface if tyres == "magic_formula" else "dry"
         self.tyres = tyres
         self.surface = surface
+        self.tyre_params = tyre_params
         self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz,
                                                history_steps=self._history_steps, tyres=tyres,
-                                               tyre_params=tyre_params, surface=surface)
+                                               tyre_params=tyre_params, chassis_params=chassis_params,
+                                               surface=surface)
         self.data = mujoco.MjData(self.model)
         self.index = CarIndex.of(self.model)
         params = vehicle_parameters(self.model, drivetrain)
@@ -222,6 +226,22 @@ class VehicleSim:
         with its rows read out of MuJoCo's history at once (``step``'s way), so that the
         fault sees them; MuJoCo's own state is not changed by it."""
         self.reset()
+
+    def estimator_defaults(self) -> dict[str, Any]:
+        """What this car tells an estimator that rides on it, by the estimators' parameter
+        names (``Estimator.vehicle_params``: an estimator lists those it takes; the
+        co-simulation and ``compare`` give each of them as the default of a parameter the
+        user has not set): ``speed_point_b_m``, where the wheel odometry's speed is measured
+        (the rear axle's centre) seen from the IMU site, body axes, m; and
+        ``rear_slip_gradient_rad_per_g``, the rear axle's slip angle per g of lateral
+        acceleration of its tyres (``tyres.rear_slip_gradient_rad_per_g``: W_r/C_αr, 0 for
+        the coulomb tyres)."""
+        from biso_cosim.vehicle.tyres import rear_slip_gradient_rad_per_g
+
+        ix = self.index
+        return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b),
+                "rear_slip_gradient_rad_per_g": rear_slip_gradient_rad_per_g(self.parameters, self.tyres,
+                                                                             self.tyre_params)}
 
     # ------------------------------------------------------------------ placement
     def reset(self) -> None:
