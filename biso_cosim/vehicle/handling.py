@@ -110,8 +110,9 @@ def _body_velocity(truth) -> np.ndarray:
 
 
 def steady_circle(speed_mps: float, *, radius_m: float = 40.0, tyres: str = "magic_formula",
-                  settle_s: float = 8.0, window_s: float = 6.0) -> SteadyPoint:
-    """One constant-speed run on the circle; the steady state over the last ``window_s``."""
+                  settle_s: float = 8.0, window_s: float = 6.0, **car) -> SteadyPoint:
+    """One constant-speed run on the circle; the steady state over the last ``window_s``.
+    ``car``: ``tyre_params``, ``chassis_params`` of ``VehicleSim`` (default the reference car's)."""
     from biso_cosim.frames import euler_from_quat
     from biso_cosim.vehicle.driver import DriverCommand
     from biso_cosim.vehicle.sim import Truth, VehicleSim
@@ -119,7 +120,7 @@ def steady_circle(speed_mps: float, *, radius_m: float = 40.0, tyres: str = "mag
     ramp_s = speed_mps / _RAMP_MPS2 + 1.0
     duration = ramp_s + settle_s + window_s
     laps = int(math.ceil(speed_mps * duration / (2 * math.pi * radius_m))) + 1
-    sim = VehicleSim(circle_route(radius_m, speed_mps, laps), tyres=tyres)
+    sim = VehicleSim(circle_route(radius_m, speed_mps, laps), tyres=tyres, **car)
     rows = []
     # the driver steers; the speed is held by a PI loop of its own (the route's speed profile
     # caps the speed in curves at the car's route limit, below the tyres' limit)
@@ -212,8 +213,9 @@ def limit_lateral_accel(points: list[SteadyPoint]) -> float:
     return max(steady) if steady else float("nan")
 
 
-def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0) -> float:
-    """Distance (m) from full brakes at ``start_kmh`` to rest on a straight, flat road."""
+def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0, **car) -> float:
+    """Distance (m) from full brakes at ``start_kmh`` to rest on a straight, flat road (``car``:
+    as ``steady_circle``'s)."""
     import mujoco
 
     from biso_cosim.vehicle.driver import DriverCommand
@@ -221,7 +223,7 @@ def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0) 
     from biso_cosim.vehicle.sim import VehicleSim
 
     v0 = start_kmh / 3.6
-    sim = VehicleSim(_straight_road(2000.0), tyres=tyres)
+    sim = VehicleSim(_straight_road(2000.0), tyres=tyres, **car)
     # up to speed at once: the car rolling at v0, its wheels turning with it
     m, d = sim.model, sim.data
     d.qvel[0:2] = (v0 * math.cos(sim.route.start_xy_yaw[2]), v0 * math.sin(sim.route.start_xy_yaw[2]))
@@ -256,10 +258,11 @@ class StepSteer:
 
 
 def step_steer(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: float = 4.0, steer_rate_rad_s: float = 0.4,
-               tyres: str = "magic_formula", understeer_deg_per_g: float | None = None) -> StepSteer:
+               tyres: str = "magic_formula", understeer_deg_per_g: float | None = None, **car) -> StepSteer:
     """ISO 7401 step steer (``step_steer_series``) and its figures."""
     run = step_steer_series(speed_mps=speed_mps, lateral_accel_mps2=lateral_accel_mps2,
-                            steer_rate_rad_s=steer_rate_rad_s, tyres=tyres, understeer_deg_per_g=understeer_deg_per_g)
+                            steer_rate_rad_s=steer_rate_rad_s, tyres=tyres, understeer_deg_per_g=understeer_deg_per_g,
+                            **car)
     # times from the steering command (ISO 7401's steering-wheel angle), not the road wheels'
     # angle, which the compliance steer turns back as the front force builds
     t, delta, r, ay, steer = run["t_s"], run["command_rad"], run["yaw_rate_rad_s"], run["lateral_accel_mps2"], run["step_rad"]
@@ -277,19 +280,20 @@ def step_steer(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: float = 4.0
 
 def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: float = 4.0,
                       steer_rate_rad_s: float = 0.4, tyres: str = "magic_formula",
-                      understeer_deg_per_g: float | None = None) -> dict[str, np.ndarray]:
+                      understeer_deg_per_g: float | None = None, **car) -> dict[str, np.ndarray]:
     """The time series of an ISO 7401 step steer from the steering command's start (t_s, the
     road-wheel angle's change steer_rad, the steering command's command_rad, yaw rate, lateral acceleration, speed; step_rad the
     commanded step) at ``speed_mps`` (80 km/h) to a steady ``lateral_accel_mps2`` (4 m/s²),
     the road-wheel angle ramped at ``steer_rate_rad_s`` (0.4 rad/s: about 350 °/s at the
     steering wheel of a 15:1 steering), the drive held at its value before the step. The step
-    is sized from the linear bicycle model (L/R plus the understeer gradient, if given)."""
+    is sized from the linear bicycle model (L/R plus the understeer gradient, if given).
+    ``car``: as ``steady_circle``'s."""
     from biso_cosim.frames import euler_from_quat
     from biso_cosim.vehicle.driver import DriverCommand
     from biso_cosim.vehicle.performance import _straight_road
     from biso_cosim.vehicle.sim import Truth, VehicleSim
 
-    sim = VehicleSim(_straight_road(3000.0), tyres=tyres)
+    sim = VehicleSim(_straight_road(3000.0), tyres=tyres, **car)
     wheelbase = sim.index.wheelbase_m
     radius = speed_mps ** 2 / lateral_accel_mps2
     steer = wheelbase / radius + math.radians(understeer_deg_per_g or 0.0) * lateral_accel_mps2 / G
@@ -351,13 +355,17 @@ def step_cost_us(*, steps: int = 5000, repeats: int = 7) -> dict[str, float]:
 
 
 def handling_report(out_dir: str | Path, *, speeds_mps=(6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 17.0, 18.0, 19.0, 20.0, 21.0),
-                    radius_m: float = 40.0, tyres: str = "magic_formula") -> dict:
-    """Run the tests, write handling.md, handling.json and handling_circle.png into ``out_dir``."""
+                    radius_m: float = 40.0, tyres: str = "magic_formula", tyre_params=None,
+                    chassis_params=None) -> dict:
+    """Run the tests, write handling.md, handling.json and handling_circle.png into ``out_dir``;
+    with ``tyre_params`` (``tyres.TyreParams``) and ``chassis_params`` (``tyres.ChassisParams``)
+    other than the reference car's, if given."""
     from biso_cosim.vehicle.model import vehicle_parameters
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    points = [steady_circle(v, radius_m=radius_m, tyres=tyres) for v in speeds_mps]
+    car = {"tyre_params": tyre_params, "chassis_params": chassis_params}
+    points = [steady_circle(v, radius_m=radius_m, tyres=tyres, **car) for v in speeds_mps]
     wheelbase = vehicle_parameters()["wheelbase_m"]
     fit = understeer_fit(points, wheelbase)
     fit["understeer_gradient_road_wheel_deg_per_g"] = understeer_fit(points, wheelbase, road_wheel=True)[
@@ -365,13 +373,15 @@ def handling_report(out_dir: str | Path, *, speeds_mps=(6.0, 8.0, 10.0, 12.0, 14
     held = [p for p in points if p.steady and abs(p.radius_m - radius_m) < 0.1 * radius_m]
     max_ay = limit_lateral_accel(points)
     progressive = progressive_limit(points, held)
-    stop = braking_distance(tyres=tyres)
-    step = step_steer(tyres=tyres, understeer_deg_per_g=fit["understeer_gradient_deg_per_g"])
+    stop = braking_distance(tyres=tyres, **car)
+    step = step_steer(tyres=tyres, understeer_deg_per_g=fit["understeer_gradient_deg_per_g"], **car)
     figures = {**fit, "max_lateral_accel_g": max_ay, "progressive_limit": progressive,
                "stopping_distance_100_m": stop, "yaw_rate_response_time_s": step.yaw_rate_response_time_s,
                "yaw_rate_peak_time_s": step.yaw_rate_peak_time_s, "yaw_rate_overshoot": step.yaw_rate_overshoot,
                "lateral_accel_response_time_s": step.lateral_accel_response_time_s}
-    result = {"tyres": tyres, "radius_m": radius_m, "figures": figures, "points": [asdict(p) for p in points],
+    changed = {name: {k: v for k, v in asdict(p).items() if v != getattr(type(p)(), k)}
+               for name, p in car.items() if p is not None}
+    result = {"tyres": tyres, "radius_m": radius_m, "parameters": changed, "figures": figures, "points": [asdict(p) for p in points],
               "step_steer": asdict(step), "step_cost": step_cost_us()}
     (out / "handling.json").write_text(json.dumps(result, indent=2))
     (out / "handling.md").write_text(report_markdown(result))
@@ -383,6 +393,9 @@ def report_markdown(result: dict) -> str:
     f = result["figures"]
     rows = [f"# Handling ({result['tyres']} tyres), `biso-cosim vehicle handling`", "",
             "| figure | measured | class (published) | within | source |", "|---|---|---|---|---|"]
+    changed = [f"{k} = {v!r}" for group in result.get("parameters", {}).values() for k, v in group.items()]
+    if changed:
+        rows[1:1] = [f"Parameters changed from the reference car's: {', '.join(changed)}.", ""]
     units = {"understeer_gradient_deg_per_g": "°/g", "max_lateral_accel_g": "g", "roll_gradient_deg_per_g": "°/g",
              "stopping_distance_100_m": "m"}
     for key, ((lo, hi), source) in PUBLISHED.items():
