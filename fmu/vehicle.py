@@ -34,9 +34,15 @@ class VehicleSlave(BisoSlave):
 
     def _configure(self) -> None:
         from biso_cosim.cosim import CoSimulation, EstimatorSpec
+        from biso_cosim.estimators import estimator_vehicle_params
 
         values = self.values
         self.name, params = self.estimator_choice()  # an unset declination: the route site's (CoSimulation)
+        # the parameters the estimator takes from its vehicle (Estimator.vehicle_params: the rear axle's
+        # position, its slip angle per g): the car's (CoSimulation), unless the host set them
+        for name in estimator_vehicle_params(self.name):
+            if not any(v.key[:3] == ("param", self.name, name) and v.name in self.set_by_host for v in self.specs):
+                params.pop(name, None)
         # stepping goes on past CoSimulation's duration (which only ends run()), so the
         # duration is the route's default
         registers = {v.key[1]: values[v.name] for v in self.specs

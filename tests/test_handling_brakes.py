@@ -17,8 +17,8 @@ from biso_cosim.vehicle.tyres import BRAKES, CHASSIS, ChassisParams, tyre_states
 
 
 def test_the_brakes_split_front_and_rear_by_the_balance_with_the_same_mean():
-    coulomb, _ = build_model(Terrain(()))
-    slip, _ = build_model(Terrain(()), tyres="magic_formula")
+    coulomb, _ = build_model(Terrain(()), tyres="coulomb")
+    slip, _ = build_model(Terrain(()))  # the default: the magic_formula tyres
     ids = [slip.actuator(name).id for name in BRAKES]
     limits = slip.actuator_forcerange[ids, 1]
     assert limits.sum() == pytest.approx(CHASSIS.brake_torque_nm)

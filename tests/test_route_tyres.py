@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from biso_cosim.routes import load_route, parse_route
-from biso_cosim.vehicle.tyres import SURFACES, TYRE_MODELS
+from biso_cosim.vehicle.tyres import DEFAULT_TYRE_MODEL, SURFACES, TYRE_MODELS
 
 
 def straight(**top) -> dict:
@@ -22,11 +22,13 @@ def straight(**top) -> dict:
             "waypoint": [{"x_m": 0.0, "y_m": 0.0, "speed_mps": 14.0}, {"x_m": 400.0, "y_m": 0.0}], **top}
 
 
-def test_defaults_are_the_coulomb_car_on_dry_asphalt():
+def test_defaults_are_the_magic_formula_car_on_dry_asphalt():
     route = parse_route(straight())
-    assert (route.tyres, route.surface) == ("coulomb", "dry")
-    assert all((load_route(n).tyres, load_route(n).surface) == ("coulomb", "dry")
+    assert (route.tyres, route.surface) == ("magic_formula", "dry") == (DEFAULT_TYRE_MODEL, "dry")
+    assert all((load_route(n).tyres, load_route(n).surface) == ("magic_formula", "dry")
                for n in ("figure8", "loop600", "rough_road"))
+    # the earlier car stays selectable in the route file
+    assert parse_route(straight(tyres="coulomb")).tyres == "coulomb"
 
 
 @pytest.mark.parametrize("surface", [*SURFACES, 0.5, 1, 1.5])
@@ -47,7 +49,7 @@ def test_every_named_surface_and_scale_is_read(surface):
     ({"tyres": "magic_formula", "surface": float("nan")}, "got nan"),
     ({"tyres": "magic_formula", "surface": True}, "got True"),
     ({"tyres": "magic_formula", "surface": [1.0]}, "got [1.0]"),
-    ({"surface": "wet"}, "my.toml: surface = 'wet' needs tyres = \"magic_formula\""),
+    ({"tyres": "coulomb", "surface": "wet"}, "my.toml: surface = 'wet' needs tyres = \"magic_formula\""),
 ])
 def test_bad_tyres_or_surface_is_one_line_naming_the_field(top, message):
     with pytest.raises(ValueError) as info:
@@ -64,7 +66,7 @@ def test_the_route_file_format_is_documented():
     doc = module.__doc__
     block = doc[doc.index("format = 1"):doc.index("The first waypoint")]
     data = tomllib.loads("\n".join(line[4:] for line in block.splitlines()))
-    assert data["tyres"] == "coulomb" and data["surface"] == "dry"
+    assert data["tyres"] == DEFAULT_TYRE_MODEL and data["surface"] == "dry"
     assert set(TYRE_MODELS) <= set(doc.replace('"', " ").split())
 
 
@@ -79,9 +81,10 @@ def test_vehicle_sim_takes_the_route_tyres_unless_given_its_own():
     assert VehicleSim(route, tyres="coulomb").model.nplugin == 0
     wet = VehicleSim(route, surface="wet")
     assert wet.model.geom("ground").friction[0] == SURFACES["wet"]
-    coulomb_route = parse_route(straight())
+    coulomb_route = parse_route(straight(tyres="coulomb"))
     assert VehicleSim(coulomb_route).model.nplugin == 0
     assert VehicleSim(coulomb_route, tyres="magic_formula").model.geom("ground").friction[0] == 1.0
+    assert VehicleSim(parse_route(straight())).model.nplugin == 1  # the default
 
 
 def brake_from(route, speed_mps: float = 14.0) -> float:
@@ -195,6 +198,6 @@ def test_bad_surface_patches_are_one_line_naming_the_entry_and_field(patch, mess
 
 def test_surface_patches_need_the_magic_formula_tyres():
     with pytest.raises(ValueError) as info:
-        parse_route(straight(terrain={"surface": [snow_patch(0.0, 10.0)]}), source="my.toml")
+        parse_route(straight(tyres="coulomb", terrain={"surface": [snow_patch(0.0, 10.0)]}), source="my.toml")
     assert str(info.value) == ("my.toml: terrain.surface needs tyres = \"magic_formula\" (the coulomb tyres have "
                                "one friction everywhere)")

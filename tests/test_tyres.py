@@ -15,7 +15,7 @@ import pytest
 
 from biso_cosim.vehicle.model import build_model, car_spec, vehicle_parameters
 from biso_cosim.vehicle.terrain import Terrain
-from biso_cosim.vehicle.tyres import (BRAKES, STEER, SURFACES, TYRES, WHEEL_GEOMS, TyreParams, load_plugin,
+from biso_cosim.vehicle.tyres import (BRAKES, STEER, SURFACES, TYRES, WHEEL_GEOMS, ChassisParams, TyreParams, load_plugin,
                                       magic_formula, surface_friction, tyre_states)
 
 G = 9.80665
@@ -376,6 +376,19 @@ def test_the_handling_command_refuses_bad_input_in_one_line(capsys, tmp_path):
                                                "[20, 200], got 5")
     assert main(["vehicle", "params", "--tyres"]) == 0
     assert capsys.readouterr().out.strip() == TyreParams.table()
+    assert main(["vehicle", "params", "--chassis"]) == 0
+    assert capsys.readouterr().out.strip() == ChassisParams.table()
+    # parameters set for the report: a value out of range, an unknown name, not a number
+    for option, setting, message in (
+            ("--chassis", "compliance_steer_rad_per_n=1e-3",
+             "ChassisParams.compliance_steer_rad_per_n must be in [0, 3e-05] rad/N, got 0.001"),
+            ("--tyre", "pdy1=nan", "TyreParams.pdy1 must be in [0.1, 2] -, got nan"),
+            ("--chassis", "abs=1", "--chassis must be NAME=VALUE with NAME one of brake_torque_nm, "
+                                   "brake_balance_front, abs_slip_target, abs_gain_per_s, abs_speed_min_mps, "
+                                   "compliance_steer_rad_per_n, got 'abs=1'"),
+            ("--tyre", "pky1=stiff", "--tyre pky1 must be a number, got 'stiff'")):
+        assert main(["vehicle", "handling", "--out", str(tmp_path), option, setting]) == 2
+        assert capsys.readouterr().err.strip() == f"biso-cosim vehicle: error: {message}"
 
 
 @pytest.mark.slow

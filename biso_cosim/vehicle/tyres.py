@@ -212,7 +212,9 @@ class ChassisParams:
             "(0.32 °/kN), a torque on the steering hinge against its servo",
         source="the mechanism: Gillespie, Fundamentals of Vehicle Dynamics (1992), ch. 6 (compliance steer adds "
                "c_δ·W_f to the understeer gradient, W_f the front axle load); the value chosen so that the "
-               "understeer gradient falls within the class's 2-4 °/g, not taken from a measured car")
+               "understeer gradient falls within the class's 2-4 °/g, not taken from a measured car: no "
+               "published measurement of a car of the class was found (docs/vehicle.md); it stands in for the "
+               "front axle's compliance and roll effects the model leaves out (Bundorf & Leffert, SAE 760713)")
 
     def check(self) -> None:
         """ValueError naming the parameter and its range for a value out of physical range."""

@@ -1,0 +1,61 @@
+"""The parameters an estimator takes from the car it rides on (``Estimator.vehicle_params``,
+``VehicleSim.estimator_defaults``): the rear axle's position and its slip angle per g."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from biso_cosim.cosim import CoSimulation, EstimatorSpec
+from biso_cosim.estimators import estimator_vehicle_params
+from biso_cosim.routes import load_route
+from biso_cosim.vehicle.model import vehicle_parameters
+from biso_cosim.vehicle.tyres import TYRES, TyreParams, magic_formula, rear_slip_gradient_rad_per_g
+
+G0 = 9.80665
+
+
+def test_the_rear_slip_gradient_is_the_rear_tyres_load_over_their_cornering_stiffness():
+    """D_r = W_r/C_αr with C_αr the slope of the plugin's own F_y at a small slip angle, at the
+    static load of a rear tyre: the single-track model's rear slip angle per g."""
+    p = vehicle_parameters()
+    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G0 / 2.0
+    slip = 1e-4
+    c_alpha = -magic_formula(w_r, 0.0, slip)[1] / slip  # the force opposes the slip
+    assert rear_slip_gradient_rad_per_g(p) == pytest.approx(w_r / c_alpha, rel=1e-3)
+    assert math.degrees(rear_slip_gradient_rad_per_g(p)) == pytest.approx(4.45, abs=0.01)
+    # stiffer tyres slip less; the coulomb tyres steer kinematically
+    stiffer = dataclasses.replace(TYRES, pky1=2.0 * TYRES.pky1)
+    assert rear_slip_gradient_rad_per_g(p, params=stiffer) == pytest.approx(0.5 * rear_slip_gradient_rad_per_g(p))
+    assert rear_slip_gradient_rad_per_g(p, "coulomb") == 0.0
+    with pytest.raises(ValueError, match="tyres must be one of 'coulomb', 'magic_formula', got 'slick'"):
+        rear_slip_gradient_rad_per_g(p, "slick")
+
+
+def test_the_cosimulation_gives_biso_plus_the_cars_values_unless_the_user_set_them():
+    route = load_route("figure8")
+    mine = EstimatorSpec("biso_plus", {"rear_slip_gradient_rad_per_g": 0.01}, label="mine")
+    sim = CoSimulation(route, duration_s=1.0, estimators=["biso_plus", "biso", mine])
+    defaults = sim.vehicle.estimator_defaults()
+    ix = sim.vehicle.index
+    assert defaults["speed_point_b_m"] == tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b)
+    assert defaults["rear_slip_gradient_rad_per_g"] == rear_slip_gradient_rad_per_g(sim.vehicle.parameters)
+    params = sim.estimators["biso_plus"].params
+    assert params.rear_slip_gradient_rad_per_g == pytest.approx(0.0776, abs=1e-4)
+    assert params.speed_point_b_m == defaults["speed_point_b_m"]
+    assert sim.estimators["mine"].params.rear_slip_gradient_rad_per_g == 0.01
+    assert estimator_vehicle_params("biso") == ()
+    coulomb = CoSimulation(dataclasses.replace(route, tyres="coulomb"), duration_s=1.0, estimators=["biso_plus"])
+    assert coulomb.estimators["biso_plus"].params.rear_slip_gradient_rad_per_g == 0.0
+
+
+def test_the_cars_own_tyre_parameters_set_its_rear_slip_gradient():
+    from biso_cosim.vehicle.sim import VehicleSim
+
+    softer = TyreParams(pky1=10.0)
+    sim = VehicleSim(load_route("figure8"), tyre_params=softer)
+    assert sim.estimator_defaults()["rear_slip_gradient_rad_per_g"] == pytest.approx(
+        rear_slip_gradient_rad_per_g(sim.parameters, params=softer))
+    assert sim.estimator_defaults()["rear_slip_gradient_rad_per_g"] > rear_slip_gradient_rad_per_g(sim.parameters)
