@@ -356,14 +356,18 @@ def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
 def test_standing_still_earns_nothing_and_the_stalled_episode_is_truncated():
     env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), stall_s=2.0)
     env.reset(seed=0)
-    steps = 0
+    steps, moved = 0, 0.0
     while True:
         _, reward, terminated, truncated, info = env.step(np.array([-1.0, 0.3]))  # braked, wheel turned
         steps += 1
-        assert abs(reward) < 1e-6 and abs(info["reward_cross_track"]) < 1e-6  # (the braked car settles by µm)
+        moved += abs(info["reward_progress"])
+        assert abs(info["reward_cross_track"]) <= max(info["reward_progress"], 0.0)
         if terminated or truncated:
             break
     assert truncated and not terminated and info["stalled"] and steps == round(2.0 / env.unwrapped.dt)
+    # the braked car settles on its tyres' deflection by micrometres: all the stand's reward within
+    # the 0.1 mm a parked car on the slip-based tyres may creep in 10 s (tests/test_tyres.py)
+    assert moved < 1e-4
 
 
 def test_a_car_that_drives_is_never_stalled():

@@ -48,7 +48,7 @@ def test_chassis_parameters_out_of_range_are_refused_naming_them(name, value):
     text = str(info.value)
     assert text.startswith(f"ChassisParams.{name} must be in [") and "\n" not in text
     with pytest.raises(ValueError, match="apply to tyres='magic_formula' only"):
-        build_model(Terrain(()), chassis_params=ChassisParams())
+        build_model(Terrain(()), tyres="coulomb", chassis_params=ChassisParams())
 
 
 def _full_stop(chassis: ChassisParams, start_mps: float = 100.0 / 3.6):

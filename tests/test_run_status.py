@@ -34,7 +34,11 @@ y_m = 0.0
 """
 
 # a 4 m ridge whose crest runs 1.2 m beside the road, from behind the start: the car stands
-# on its 63° flank at t = 0 and falls over
+# on its 63° flank at t = 0 and falls over. The car is the coulomb one (tyres = "coulomb" in the
+# file): the magic_formula car placed there goes unstable in its first steps (the placement
+# presses its uphill wheels into the flank, MuJoCo solves loads of 7e6 N, far outside the
+# Magic Formula's load range; test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite)
+FLANK_TYRES = 'tyres = "coulomb"\n'
 FLANK = """[[terrain.feature]]
 type = "ridge"
 x0_m = -20.0
@@ -57,9 +61,9 @@ height_m = 3.0
 """
 
 
-def _route_file(tmp_path, name, length=200.0, terrain=""):
+def _route_file(tmp_path, name, length=200.0, terrain="", top=""):
     path = tmp_path / f"{name}.toml"
-    path.write_text(STRAIGHT.format(name=name, length=length) + terrain)
+    path.write_text(top + STRAIGHT.format(name=name, length=length) + terrain)
     return path
 
 
@@ -69,8 +73,21 @@ def _tilt_deg(q):
 
 @pytest.fixture(scope="module")
 def rolled(tmp_path_factory):
-    path = _route_file(tmp_path_factory.mktemp("roll"), "flank", terrain=FLANK)
+    path = _route_file(tmp_path_factory.mktemp("roll"), "flank", terrain=FLANK, top=FLANK_TYRES)
     return path, CoSimulation(path, duration_s=3.0, estimators=["poisson"]).run()
+
+
+@pytest.mark.xfail(strict=True, reason="open (issue 26): the slip-tyre car placed into the 63° flank meets "
+                                       "contact loads of 7e6 N; the Magic Formula gets no load bound (FZMAX)")
+def test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite(tmp_path):
+    """The magic_formula car on the flank: its first steps stay finite (MuJoCo would reset an
+    unstable state and the run would go on from the reset, judged only 'partial')."""
+    from biso_cosim.vehicle.tyres import tyre_states
+
+    sim = CoSimulation(_route_file(tmp_path, "flank", terrain=FLANK), duration_s=1.0, estimators=["poisson"])
+    assert sim.vehicle.tyres == "magic_formula"
+    sim.vehicle.step(10)
+    assert np.all(tyre_states(sim.vehicle.model, sim.vehicle.data)["load_n"] < 20000.0)
 
 
 def test_a_car_on_a_steep_flank_rolls_over(rolled):

@@ -105,7 +105,7 @@ def test_parameters_out_of_range_are_refused_naming_them():
     with pytest.raises(ValueError, match="tyres must be 'coulomb' or 'magic_formula'"):
         build_model(Terrain(()), tyres="brush")
     with pytest.raises(ValueError, match="apply to tyres='magic_formula' only"):
-        build_model(Terrain(()), surface="wet")
+        build_model(Terrain(()), tyres="coulomb", surface="wet")
     assert TyreParams.table().count("\n") == len(TyreParams.__dataclass_fields__) + 1
 
 
@@ -188,10 +188,14 @@ def test_one_mj_step_call_of_n_steps_equals_n_calls_bit_for_bit():
     assert np.any(tyre_states(model, a)["fx_n"][2:] > 100.0)  # driving: the rear tyres push
 
 
-def test_default_tyres_are_unchanged():
-    """Without the option the car is the Coulomb car of car.xml (no plugin, condim 3)."""
+def test_the_default_tyres_are_the_magic_formula_and_coulomb_is_car_xml():
+    """Without the option the car drives on the plugin's tyres (the tyre geoms carry the normal
+    load only, condim 1); ``tyres="coulomb"`` is the Coulomb car of car.xml (no plugin, condim 3)."""
     model, _ = build_model(Terrain(()))
+    assert model.nplugin == 1 and all(model.geom(name).condim == 1 for name in WHEEL_GEOMS)
+    model, _ = build_model(Terrain(()), tyres="coulomb")
     assert model.nplugin == 0 and all(model.geom(name).condim == 3 for name in WHEEL_GEOMS)
+    assert all(model.geom(name).condim == car_spec().compile().geom(name).condim for name in WHEEL_GEOMS)
 
 
 @pytest.fixture(scope="module")
