@@ -18,7 +18,8 @@ the rear axle from wheel odometry (mean rear wheel rate × wheel radius, so with
 and, with it, the car's parameters it takes from its vehicle (``Estimator.vehicle_params``,
 ``VehicleSim.estimator_defaults``): the position of the rear axle relative to the IMU and
 the rear axle's slip angle per g of the route's tyres, D_r = W_r/C_αr (0 for the coulomb
-tyres); ``biso_plus_nospeed`` is the same without the speed input (and without them). Test motions have no speed.
+tyres); ``biso_plus_nospeed`` is the same without the speed input (and without them). Test
+motions have no speed.
 
 Errors are estimate minus truth in roll, pitch and compass heading (``biso_cosim.metrics``),
 RMS and largest magnitude per dataset, over all samples.
@@ -87,7 +88,8 @@ def route_dataset(route: str | Route, seed: int = 0, duration_s: float | None = 
     odometry = 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius
     gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(res.sensor["registers"].get("gyro_fs_sel", 0))]
     return Dataset(
-        name=route if isinstance(route, str) else route.name, kind="route", seed=seed, fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
+        name=route if isinstance(route, str) else route.name, kind="route", seed=seed,
+        fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
         gyro_b=res.imu.gyro_b, accel_b=res.imu.accel_b, mag_b=res.imu.mag_b, q_true=res.truth.q_wb,
         declination_rad=math.radians(res.site["declination_deg"]), speed_mps=odometry,
         vehicle_params=sim.vehicle.estimator_defaults(), gyro_range_rad_s=math.radians(gyro_fs),

@@ -15,8 +15,8 @@ import pytest
 
 from biso_cosim.vehicle.model import build_model, car_spec, vehicle_parameters
 from biso_cosim.vehicle.terrain import Terrain
-from biso_cosim.vehicle.tyres import (BRAKES, STEER, SURFACES, TYRES, WHEEL_GEOMS, ChassisParams, TyreParams, load_plugin,
-                                      magic_formula, surface_friction, tyre_states)
+from biso_cosim.vehicle.tyres import (BRAKES, STEER, SURFACES, TYRES, WHEEL_GEOMS, ChassisParams, TyreParams,
+                                      load_plugin, magic_formula, surface_friction, tyre_states)
 
 G = 9.80665
 P = TYRES

@@ -13,9 +13,10 @@ driver may ask for, ``USABLE_FRICTION``. With the default Magic Formula tyres
 0.123 at 0.78 g on the 40 m circle, where the car holds at most 0.78 g and runs wide at
 0.83-0.88 g); with the Coulomb sphere tyres the car steers kinematically up to 0.65 g and
 slides suddenly at 0.76 g (docs/design.md §11). 0.65 keeps a route below both limits with
-the driver on its path (``biso-cosim routes check``: cross-track RMS 0.09-0.34 m on the library
-routes with the magic_formula tyres; docs/routes.md). The same fraction bounds traction, braking (the
-Magic Formula tyres brake at 1.19 g with the ABS) and the climbable grade.
+the driver on its path (``biso-cosim routes check``: cross-track RMS 0.09-0.34 m on the
+library routes with the magic_formula tyres; docs/routes.md). The same fraction bounds
+traction, braking (the Magic Formula tyres brake at 1.19 g with the ABS) and the climbable
+grade.
 """
 
 from __future__ import annotations

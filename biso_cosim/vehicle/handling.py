@@ -381,7 +381,8 @@ def handling_report(out_dir: str | Path, *, speeds_mps=(6.0, 8.0, 10.0, 12.0, 14
                "lateral_accel_response_time_s": step.lateral_accel_response_time_s}
     changed = {name: {k: v for k, v in asdict(p).items() if v != getattr(type(p)(), k)}
                for name, p in car.items() if p is not None}
-    result = {"tyres": tyres, "radius_m": radius_m, "parameters": changed, "figures": figures, "points": [asdict(p) for p in points],
+    result = {"tyres": tyres, "radius_m": radius_m, "parameters": changed, "figures": figures,
+              "points": [asdict(p) for p in points],
               "step_steer": asdict(step), "step_cost": step_cost_us()}
     (out / "handling.json").write_text(json.dumps(result, indent=2))
     (out / "handling.md").write_text(report_markdown(result))

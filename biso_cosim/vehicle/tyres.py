@@ -42,8 +42,9 @@ import numpy as np
 from biso_cosim.estimators._base import param
 from biso_cosim.units import G0
 
-__all__ = ["TyreParams", "TYRES", "ChassisParams", "CHASSIS", "SURFACES", "TYRE_MODELS", "DEFAULT_TYRE_MODEL", "PLUGIN_NAME", "plugin_library", "load_plugin",
-           "magic_formula", "rear_slip_gradient_rad_per_g", "tyre_states", "STATE_STRIDE", "surface_friction"]
+__all__ = ["TyreParams", "TYRES", "ChassisParams", "CHASSIS", "SURFACES", "TYRE_MODELS", "DEFAULT_TYRE_MODEL",
+           "PLUGIN_NAME", "plugin_library", "load_plugin", "magic_formula", "rear_slip_gradient_rad_per_g",
+           "tyre_states", "STATE_STRIDE", "surface_friction"]
 
 PLUGIN_NAME = "biso.tyres"
 INSTANCE_NAME = "tyres"
