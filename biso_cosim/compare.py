@@ -64,6 +64,8 @@ unknown offset cost every method 10–25° of heading, which BROAD does not show
 MOTION_SETUP = {name: {"rest_s": 10.0} for name in ("shake", "magnet", "translation", "near_magnet", "vibration")}
 MOTION_SETUP["tumble"] = {"rest_s": 10.0, "hand_accel_mps2": 2.25}
 MOTION_SETUP["fast_tumble"] = {"rest_s": 10.0, "hand_accel_mps2": 4.63}
+MOTION_SETUP["translation"] = {"rest_s": 10.0, "hand_rate_dps": (57.0, 67.0, 123.0),
+                               "field_gradient_ut_per_m": ((0.7, 0.8, -1.3), (0.8, 1.8, -0.7), (-1.3, -0.7, -2.5))}
 """Keyword arguments of the motions as the comparison runs them, as BROAD's trials were
 recorded (docs/estimators.md "Simulated against real"). ``rest_s``: seconds at rest before
 the motion (added to its duration): BROAD's trials start at rest (26–46 s in the ten of the
@@ -74,7 +76,11 @@ up to atan(2 g / g) and its convergence dominated the RMS error (7–9° total f
 VQF against 2.7–4.6° from t = 10 s). ``moving_start`` is the motion that tests a start in
 motion. ``hand_accel_mps2``: the hand's acceleration while it turns the sensor, BROAD's
 rotation trials' mean for ``tumble`` (1.20, 0.91 and 4.63 m/s² RMS on 01, 05, 07), the fast
-trial 07's for ``fast_tumble``."""
+trial 07's for ``fast_tumble``. ``hand_rate_dps``: the hand's rotation while it moves the
+sensor fast, BROAD's fast translation trial 15 (RMS about x, y, z). ``field_gradient_ut_per_m``:
+the field of BROAD's lab changes with the position by about 4 µT/m (fitted on the translated
+trials 11, 15 and 27, where it explains 45–65 % of the field's residual; the mean made
+symmetric and traceless); only a motion that moves the sensor by decimetres feels it."""
 
 
 MOTION_MAG_DELAY_S = 0.014
@@ -144,7 +150,8 @@ def route_dataset(route: str, seed: int = 0, duration_s: float | None = None) ->
 
 def motion_dataset(name: str, seed: int = 0, duration_s: float | None = None) -> Dataset:
     """A test motion (``biso_cosim.motions``) at 1 kHz through the virtual MPU-9250 (``MOTION_REGISTERS``,
-    ``MOTION_PROFILE``) with the arguments of ``MOTION_SETUP``."""
+    ``MOTION_PROFILE``) with the arguments of ``MOTION_SETUP``; ``info`` holds the field and the
+    motion's masks at the samples (``moving``: not in the rest before it; all samples if it has none)."""
     from biso_cosim.motions import make_motion
     from biso_cosim.sensors import MPU9250, EarthField, Registers
 
@@ -156,11 +163,13 @@ def motion_dataset(name: str, seed: int = 0, duration_s: float | None = None) ->
     mag_b = np.concatenate([np.repeat(motion.mag_b[:1], lag, axis=0), motion.mag_b[:len(motion) - lag]])
     s = imu.simulate(motion.omega_b, motion.specific_force_b, mag_b)
     idx = np.clip(np.rint(s.t_s * 1000.0).astype(np.int64), 0, len(motion) - 1)
+    masks = {k: v[idx] for k, v in motion.info.items()  # "moving", "vibrating": at the samples
+             if isinstance(v, np.ndarray) and v.dtype == bool and v.shape == (len(motion),)}
     return Dataset(
         name=name, kind="motion", seed=seed, fs_hz=imu.output_rate_hz, t_s=s.t_s, gyro_b=s.gyro_b,
         accel_b=s.accel_b, mag_b=s.mag_b, q_true=motion.q_wb[idx], declination_rad=earth.declination_rad,
         gyro_range_rad_s=math.radians(2000.0), info={"field_enu_ut": [float(x) for x in earth.field_enu_ut],
-                                                     "moving": motion.info.get("moving", np.ones(len(motion), bool))[idx]})
+                                                     "moving": np.ones(len(idx), bool), **masks})
 
 
 # --------------------------------------------------------------------------------------

@@ -321,24 +321,47 @@ def magnet(duration_s=30.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, closest_m=0.
                      {"distance_m": dist, "moment_am2": moment_am2, "moving": t > rest_s})
 
 
-def translation(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=2.0, rest_s=0.0, field_w=EARTH_FIELD_W, g=G0):
+def translation(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=2.0, rest_s=0.0, hand_rate_dps=(0.0, 0.0, 0.0),
+                field_gradient_ut_per_m=None, field_w=EARTH_FIELD_W, g=G0):
     """Fast handheld translations: slow attitude changes (±(10–15)° at 0.05–0.2 Hz) and a
     back-and-forth translation along every axis at 1.1, 1.7 and 2.5 Hz, each of ``accel_g``/3
-    g amplitude (|f| − g about 1 g RMS at the default, peaks near 3 g), for the whole motion (the specific force leaves g all the time; its
-    spectrum lies a decade above the cut-off of a tilt low-pass of a few seconds); after
-    ``rest_s`` at rest (`_rest_warp`) if given."""
+    g amplitude (|f| − g about 1 g RMS at the default, peaks near 3 g), for the whole motion
+    (the specific force leaves g all the time; its spectrum lies a decade above the cut-off of
+    a tilt low-pass of a few seconds); after ``rest_s`` at rest (`_rest_warp`) if given.
+
+    A hand that moves a sensor fast also turns it at the same pace: ``hand_rate_dps`` adds
+    rotations of those RMS rates (°/s) in roll, pitch and yaw at 2.5, 1.7 and 1.1 Hz (phases
+    from ``seed``). BROAD's fast translation trial 15: 57, 67 and 123 °/s RMS about x, y, z,
+    its power's median at 1.26 Hz (the translation's), |ω| median 122 °/s.
+
+    ``field_gradient_ut_per_m`` (3, 3), ENU: the room's field changes with the position,
+    B(p) = B + G p (p from the translation's centre; a field without sources nearby has G
+    symmetric and traceless). In BROAD's lab the field against the reference, band-passed to
+    the translations' 0.3–4 Hz, follows the position with |G| ≈ 4 µT/m (57 % and 65 % of it
+    explained on trials 11 and 15: ``benchmarks/broad_motions.py``)."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=3)
     amp, frq = np.radians([15.0, 10.0, 12.0]), 2 * np.pi * np.array([0.05, 0.13, 0.19])
-
-    q, om = _warped_chain(t, warp, *(_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.5, 0.1, -0.15))))
     freqs = [1.1, 1.7, 2.5]
     amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in freqs]
-    _, acc = _sines(rng, t, amp_pos, freqs, warp)
+    pos, acc = _sines(rng, t, amp_pos, freqs, warp)
+    angles = [_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.5, 0.1, -0.15))]
+    rate = np.radians(np.asarray(hand_rate_dps, float))
+    if np.any(rate > 0.0):
+        ph_hand = rng.uniform(0, 2 * np.pi, size=3)
+        for j, (r, f) in enumerate(zip(rate[::-1], freqs)):  # yaw (z) at 1.1 Hz … roll (x) at 2.5 Hz
+            w = 2 * np.pi * f
+            hand = _swing(math.sqrt(2.0) * r / w, w, ph_hand[j])
+            slow = angles[j]
+            angles[j] = (lambda tt, a=slow, b=hand: a[0](tt) + b[0](tt), lambda tt, a=slow, b=hand: a[1](tt) + b[1](tt))
+    q, om = _warped_chain(t, warp, *angles)
     earth = np.asarray(field_w, float)
-    return _assemble("translation", fs_hz, t, q, om, acc, np.tile(earth, (t.size, 1)), earth, g,
-                     {"accel_g": accel_g, "moving": t > rest_s})
+    mag_w = np.tile(earth, (t.size, 1))
+    if field_gradient_ut_per_m is not None:
+        mag_w = mag_w + pos @ np.asarray(field_gradient_ut_per_m, float).T
+    return _assemble("translation", fs_hz, t, q, om, acc, mag_w, earth, g,
+                     {"accel_g": accel_g, "moving": t > rest_s, "position_m": pos})
 
 
 def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distance_m=0.3, rest_s=0.0,
@@ -500,7 +523,10 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     included) and ``high_accel_peak_hz`` its strongest frequency; ``mag_norm_std_ut``: standard
     deviation of |m|; ``mag_offset_ut``: o of m = R_wbᵀ B + o by least squares, with B =
     ``field_w`` (ENU, µT) if given, else fitted with o (which needs attitudes that turn the
-    field through the sensor's axes); ``mag_residual_ut``: median |m − R_wbᵀ B − o|.
+    field through the sensor's axes), ``field_enu_ut`` that B; ``mag_residual_ut``: median
+    |m − R_wbᵀ B − o|;
+    ``mag_lag_ms``: τ of m ≈ h − τ (h × ω), h = R_wbᵀ B + o, by least squares: how late the
+    field is against the reference (with ω from the gyro).
     """
     from scipy.signal import butter, sosfiltfilt, welch
 
@@ -528,7 +554,11 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     else:
         field = np.asarray(field_w, float)
         offset = np.mean(m - quat_rotate(quat_conjugate(qs), np.tile(field, (qs.shape[0], 1))), axis=0)
-    resid = m - quat_rotate(quat_conjugate(qs), np.tile(field, (qs.shape[0], 1))) - offset
+    field_b = quat_rotate(quat_conjugate(qs), np.tile(field, (qs.shape[0], 1)))
+    resid = m - field_b - offset
+    # a field τ late: m(t) = h(t − τ) ≈ h − τ ḣ, ḣ = h × ω in body axes (ω from the gyro)
+    h_dot = np.cross(field_b, gyro[sel])
+    lag = -np.sum(h_dot * resid) / np.sum(h_dot * h_dot)
     return {
         "rate_median_dps": float(np.median(rate)), "rate_p99_dps": float(np.percentile(rate, 99)),
         "accel_rms_mps2": float(np.sqrt(np.mean(np.sum(kin ** 2, axis=1)))),
@@ -539,6 +569,8 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
         "mag_norm_std_ut": float(np.std(np.linalg.norm(m, axis=1))),
         "mag_offset_ut": [float(x) for x in offset],
         "mag_residual_ut": float(np.median(np.linalg.norm(resid, axis=1))),
+        "mag_lag_ms": float(1e3 * lag),
+        "field_enu_ut": [float(x) for x in field],
     }
 
 
