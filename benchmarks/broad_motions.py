@@ -4,9 +4,10 @@ predict the real ranking).
 
 Part 1, the sensor: on every BROAD trial of DIR (NumPy files of shared/data/broad_dev, or
 BROAD's HDF5) `biso_cosim.motions.recording_statistics` against the optical reference, over
-the `movement` samples (the vibration of `vibration` while it vibrates), plus the gyro's bias and the magnetometer's noise at the starting rest
-and the gyro's lag behind the reference; the same on each motion of `biso-cosim compare` as
-`compare.motion_dataset` makes it (the sensor set-up of the comparison), against its truth.
+the `movement` samples, plus the gyro's bias and the magnetometer's noise at the starting
+rest, the gyro against the reference (lag, scale factor) and the lab field's gradient; the
+same on each motion of `biso-cosim compare` as `compare.motion_dataset` makes it (the sensor
+set-up of the comparison) against its truth (`vibration` while it vibrates).
 
 Part 2, the ranking: BROAD's total RMSE per trial (`biso_cosim.score`) next to the motions'
 (`compare.motion_dataset`, seeds `--seeds`), both over the movement only (BROAD's metric: the
@@ -42,9 +43,11 @@ MOTION_OF_TRIAL = {  # BROAD trial (number) → the motion of the comparison tha
 }
 
 
-def gyro_lag_ms(fs_hz: float, gyro: np.ndarray, q: np.ndarray, moving: np.ndarray) -> float:
-    """δ of gyro ≈ ω − δ ω̇ by least squares, ω the reference's body rate (central differences
-    of q), both low-passed at 15 Hz (samples with a reference dropout next to them skipped)."""
+def gyro_against_reference(fs_hz: float, gyro: np.ndarray, q: np.ndarray, moving: np.ndarray):
+    """Per gyro axis i, g_i ≈ Σ_j S_ij ω_j − δ_i ω̇_i + b_i by least squares, ω the reference's
+    body rate (central differences of q), both low-passed at 15 Hz (samples next to a reference
+    dropout skipped): the lag δ (mean of the axes, ms) and the scale-factor and cross-axis
+    matrix S."""
     ok = np.all(np.isfinite(q), axis=1)
     i = np.where(ok[:-2] & ok[1:-1] & ok[2:])[0] + 1
     dq = quat_multiply(quat_conjugate(q[i - 1]), q[i + 1])
@@ -53,9 +56,14 @@ def gyro_lag_ms(fs_hz: float, gyro: np.ndarray, q: np.ndarray, moving: np.ndarra
     w = sosfiltfilt(sos, quat_to_rotvec(dq) * 0.5 * fs_hz, axis=0)
     g = sosfiltfilt(sos, gyro[i], axis=0)
     keep = moving[i]
-    x = -np.gradient(w, 1.0 / fs_hz, axis=0)[keep]
-    design = np.concatenate([x.reshape(-1, 1), np.tile(np.eye(3), (int(keep.sum()), 1))], axis=1)
-    return float(1e3 * np.linalg.lstsq(design, (g[keep] - w[keep]).reshape(-1), rcond=None)[0][0])
+    w_dot = np.gradient(w, 1.0 / fs_hz, axis=0)[keep]
+    lags, rows = [], []
+    for axis in range(3):
+        design = np.column_stack([w[keep], -w_dot[:, axis], np.ones(int(keep.sum()))])
+        sol = np.linalg.lstsq(design, g[keep, axis], rcond=None)[0]
+        rows.append(sol[:3])
+        lags.append(sol[3])
+    return float(1e3 * np.mean(lags)), np.array(rows)
 
 
 def field_gradient(fs_hz: float, gyro, accel, mag, q, moving, field_w, g: float = G_BERLIN):
@@ -115,7 +123,9 @@ def broad_statistics(folder: str) -> dict:
         st["rest_s"] = start / r.fs_hz
         st["rest_gyro_bias_dps"] = [float(x) for x in np.degrees(np.mean(r.gyro_b[rest], axis=0))]
         st["rest_mag_noise_ut"] = [float(x) for x in np.std(r.mag_b[rest], axis=0)]
-        st["gyro_lag_ms"] = gyro_lag_ms(r.fs_hz, r.gyro_b, r.q_ref, r.movement)
+        st["gyro_lag_ms"], scale = gyro_against_reference(r.fs_hz, r.gyro_b, r.q_ref, r.movement)
+        st["gyro_scale_pct"] = [float(x) for x in 100.0 * (np.diag(scale) - 1.0)]
+        st["gyro_cross_pct"] = float(100.0 * np.max(np.abs(scale - np.diag(np.diag(scale)))))
         out["trials"][r.name] = st
     return out
 
@@ -176,6 +186,10 @@ def main() -> None:
 
     for name, st in real["trials"].items():
         line(name, st, "mag_offset_lab_field_ut")
+    print("the gyro against the reference's rate: lag (ms), scale factor − 1 (%), largest cross-axis (%):")
+    for name, st in real["trials"].items():
+        print(f"  {name:34} lag {st['gyro_lag_ms']:4.1f}  scale {np.round(st['gyro_scale_pct'], 2).tolist()}  "
+              f"cross {st['gyro_cross_pct']:.2f}")
     print("the lab field's gradient seen by the translated sensor (0.3–4 Hz), µT/m, and how much of the field's "
           "residual it explains:")
     for name, st in real["trials"].items():

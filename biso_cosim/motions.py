@@ -34,9 +34,9 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
 ``vibration`` slow handling with a phone lying on the sensor (BROAD's "phone vibration"
              trials), vibrating during the middle third: a 150 Hz vibration of ±0.0105° and
              ±0.02 mm (accelerations ~2 g, aliased at a 200 Hz sample rate; through the
-             MPU-9250's filters 3.7 m/s² and 1.9 °/s RMS, as BROAD trial 27 measured), and the
+             MPU-9250's filters 3.6 m/s² and 1.8 °/s RMS, as BROAD trial 27 measured), and the
              phone's own field, fixed in body axes for the whole motion (a hard-iron offset of
-             2.3 µT, trial 27's);
+             2.4 µT, trial 27's);
 ``moving_start`` recording started in motion: a sensor swung in the hand (0.9 Hz sway, 1.9 Hz
              bounce) whose horizontal acceleration is at its peak (``accel_g``, default 0.5 g) at
              t = 0, with slow turns: an estimator that takes its first attitude (and the
@@ -63,12 +63,12 @@ __all__ = ["Motion", "MOTIONS", "make_motion", "motion_names", "EARTH_FIELD_W", 
 EARTH_FIELD_W = (0.0, 18.0, -46.0)
 """Default Earth field in µT, ENU (about |B| = 49 µT, dip 69°: mid-northern latitudes)."""
 
-PHONE_FIELD_B_UT = (-1.4, 0.7, -1.7)
+PHONE_FIELD_B_UT = (-1.47, 0.73, -1.74)
 """The field of a phone lying on the sensor, µT in body axes: BROAD trial 27 (phone vibration),
-the mean of m − R_refᵀ B over its movement with B the lab's field from the undisturbed
-trials 01, 05, 07 (|o| = 2.3 µT; the undisturbed trials give 0.4–0.8 µT, their sensor's own
-offset). After subtracting it the residual is that of an undisturbed trial (median
-1.3 µT), so the phone's field moves with the sensor."""
+the mean of m − R_refᵀ B over its movement with B the lab's field (fitted with the offset on
+the rotation trials 01, 05, 07), |o| = 2.4 µT, where the undisturbed trials give 0.2–0.9 µT
+(their sensor's own offset); after subtracting it the residual is that of an undisturbed trial
+(median 1.3 µT), so the field moves with the sensor (``benchmarks/broad_motions.py``)."""
 
 _MU0_4PI_UT = 0.1  # µ0/4π in µT·m/A: B[µT] = 0.1 (3(m·r̂)r̂ − m)/r³ with m in A·m², r in m
 
@@ -405,12 +405,13 @@ def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_r
     vibration: a hard-iron offset). With ``rest_s`` the motion starts from rest (`_rest_warp`)
     and the vibration is in the middle third of the rest of it.
 
-    Measured on BROAD trial 27 (phone vibration; ``PHONE_FIELD_B_UT``): what its IMU recorded
-    while the phone vibrated is a tone at 43.9 Hz (84 % of the power above 20 Hz within
-    ±5 Hz; a phone motor's 150–250 Hz aliased by 285.7 Hz sampling), 3.6–4.0 m/s² RMS in
-    the accelerometer and 1.9 °/s RMS in the gyro above 20 Hz. The MPU-9250 of
-    ``compare.motion_dataset`` (41–45 Hz filters, 200 Hz) turns ±0.02 mm at 150 Hz into
-    3.7 m/s² and ±0.0105° into 1.9 °/s RMS above 20 Hz, aliased to 50 Hz."""
+    Measured on BROAD trial 27 (phone vibration; ``PHONE_FIELD_B_UT``;
+    ``benchmarks/broad_motions.py``): what its IMU recorded while the phone vibrated is a tone
+    at 44 Hz (84 % of the power above 20 Hz within ±5 Hz; a phone motor's 150–250 Hz aliased
+    by its 285.7 Hz sampling, or its own), 3.5–3.7 m/s² RMS in the accelerometer and
+    2.1 °/s RMS in the gyro above 20 Hz. The MPU-9250 of ``compare.motion_dataset`` (41–45 Hz
+    filters, 200 Hz) turns ±0.02 mm at 150 Hz into 3.6 m/s² and ±0.0105° into 1.8 °/s RMS
+    above 20 Hz, aliased to 50 Hz."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
     ph = rng.uniform(0, 2 * np.pi, size=3)
