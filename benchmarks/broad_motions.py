@@ -11,7 +11,8 @@ set-up of the comparison) against its truth (`vibration` while it vibrates).
 
 Part 2, the ranking: BROAD's total RMSE per trial (`biso_cosim.score`) next to the motions'
 (`compare.motion_dataset`, seeds `--seeds`), both over the movement only (BROAD's metric: the
-comparison's own table counts the motions' rest too).
+comparison's own table counts the motions' rest too); and biso_plus without its online
+magnetometer-offset estimate (`estimate_mag_offset=False`).
 
     python benchmarks/broad_motions.py                    # shared/data/broad_dev, seeds 0,1,2
     python benchmarks/broad_motions.py DIR --seeds 0,1 --no-ranking
@@ -30,6 +31,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from biso_cosim.compare import DEFAULT_MOTIONS, motion_dataset, run_method
+from biso_cosim.estimators import make_estimator
 from biso_cosim.frames import quat_conjugate, quat_multiply, quat_rotate, quat_to_rotvec
 from biso_cosim.motions import recording_statistics
 from biso_cosim.score.readers import read_folder
@@ -150,8 +152,11 @@ def total_rmse_deg(q: np.ndarray, q_ref: np.ndarray, moving: np.ndarray) -> floa
     return float(np.degrees(np.sqrt(np.mean((2.0 * np.arccos(np.clip(np.abs(e[:, 0]), 0.0, 1.0))) ** 2))))
 
 
+NO_OFFSET = "no_offset"  # biso_plus without its online magnetometer-offset estimate
+
+
 def _row(label: str, values: dict) -> str:
-    cells = " ".join(f"{values[m]:9.2f}" for m in METHODS)
+    cells = " ".join(f"{values[m]:9.2f}" for m in (*METHODS, NO_OFFSET))
     ranking = " < ".join(sorted(METHODS, key=values.get))
     return f"{label:34} {cells} {values['biso_plus'] / values['vqf']:7.2f}  {ranking}"
 
@@ -207,17 +212,21 @@ def main() -> None:
 
     from biso_cosim.score import score
 
-    res = score(args.dir, list(METHODS), plots=False)
-    print(f"\ntotal RMSE over the movement (°){'':5}" + " ".join(f"{m:>9}" for m in METHODS) + "  bp/VQF  ranking")
+    res = score(args.dir, [*METHODS, f"{NO_OFFSET}=biso_plus:estimate_mag_offset=False"], plots=False)
+    print(f"\ntotal RMSE over the movement (°){'':5}" + " ".join(f"{m:>9}" for m in (*METHODS, NO_OFFSET))
+          + "  bp/VQF  ranking")
     for name, t in res["trials"].items():
-        print(_row(name, {m: t["methods"][m]["total_rmse_deg"] for m in METHODS})
+        print(_row(name, {m: t["methods"][m]["total_rmse_deg"] for m in (*METHODS, NO_OFFSET)})
               + f"   ({MOTION_OF_TRIAL.get(name[:2], 'no motion')})")
     for name in DEFAULT_MOTIONS:
         per_seed = []
         for seed in seeds:
             d = motion_dataset(name, seed)
-            per_seed.append({m: total_rmse_deg(run_method(m, d), d.q_true, d.info["moving"]) for m in METHODS})
-        mean = {m: float(np.mean([p[m] for p in per_seed])) for m in METHODS}
+            errors = {m: total_rmse_deg(run_method(m, d), d.q_true, d.info["moving"]) for m in METHODS}
+            q = make_estimator("biso_plus", d.fs_hz, declination_rad=d.declination_rad,
+                               estimate_mag_offset=False).update(d.gyro_b, d.accel_b, d.mag_b).q_wb
+            per_seed.append({**errors, NO_OFFSET: total_rmse_deg(q, d.q_true, d.info["moving"])})
+        mean = {m: float(np.mean([p[m] for p in per_seed])) for m in (*METHODS, NO_OFFSET)}
         ratios = " ".join(f"{p['biso_plus'] / p['vqf']:.2f}" for p in per_seed)
         print(_row(f"{name} (seeds {args.seeds})", mean) + f"   (bp/VQF per seed {ratios})")
 

@@ -74,9 +74,8 @@ the motion (added to its duration): BROAD's trials start at rest (26–46 s in t
 shared subset) and are scored over the movement, so an estimator meets their motions
 converged and with its gyro bias learned at rest (which biso_plus needs before it learns a
 magnetometer offset); started in motion, the first attitude of ``translation`` was tilted by
-up to atan(2 g / g) and its convergence dominated the RMS error (7–9° total for biso_plus and
-VQF against 2.7–4.6° from t = 10 s). ``moving_start`` is the motion that tests a start in
-motion. ``hand_accel_mps2``: the hand's acceleration while it turns the sensor, BROAD's
+up to atan(2 g / g) and its convergence counted in the RMS error. ``moving_start`` is the
+motion that tests a start in motion. ``hand_accel_mps2``: the hand's acceleration while it turns the sensor, BROAD's
 rotation trials' mean for ``tumble`` (1.20, 0.91 and 4.63 m/s² RMS on 01, 05, 07), the fast
 trial 07's for ``fast_tumble``. ``hand_rate_dps``: the hand's rotation while it moves the
 sensor fast, BROAD's fast translation trial 15 (RMS about x, y, z). ``field_gradient_ut_per_m``:
@@ -88,10 +87,10 @@ symmetric and traceless); only a motion that moves the sensor by decimetres feel
 MOTION_MAG_DELAY_S = 0.014
 """How much older the field the magnetometer reports is than the motion the gyro reports, on
 top of the MPU-9250 model's own timing (its AK8963 at 100 Hz lags the truth by 2.5 ms, the
-gyro's 41 Hz filter by 5.8 ms: the field led the gyro by 3.3 ms). BROAD's IMU, fitted on the
+gyro's 41 Hz filter by 5.9 ms: the field led the gyro by 3.4 ms). BROAD's IMU, fitted on the
 fast trials 07, 21, 29 against the optical reference (m ≈ R_refᵀB + o − τ (R_refᵀB × ω)):
-τ = 14.0–15.4 ms, its gyro 4.0–4.4 ms behind the reference, so its field lags its gyro by
-about 10.6 ms; under fast rotation the field in the gyro's frame is off by |B| |ω| τ (about
+τ = 14.0–15.4 ms, its gyro 3.8–4.2 ms behind the reference, so its field lags its gyro by
+about 10.7 ms; under fast rotation the field in the gyro's frame is off by |B| |ω| τ (about
 3 µT at BROAD 07's median 333 °/s), which on BROAD's fast trials doubles the residual of the
 field against the reference (1.3–1.5 µT on the slow ones, 3–4 µT on the fast ones)."""
 

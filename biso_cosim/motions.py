@@ -517,7 +517,8 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     attitude (BROAD's: ``q_wb`` from optical capture, NaN rows skipped) and on a simulated one
     (the truth), over the ``moving`` samples (all if None):
 
-    ``rate_median_dps``, ``rate_p99_dps``: the gyro's |ω|; ``accel_rms_mps2``: RMS of the
+    ``rate_median_dps``, ``rate_p99_dps``: the gyro's |ω|, ``rate_rms_dps`` its RMS per axis;
+    ``accel_rms_mps2``: RMS of the
     kinematic acceleration |f − R_wbᵀ g·up| and ``accel_median_hz`` the median frequency of its
     power (in ENU); ``high_accel_rms_mps2``, ``high_gyro_rms_dps``: RMS of the accelerometer's
     and the gyro's vector above ``high_hz`` (a vibration; the recording's sensor filters
@@ -562,6 +563,7 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     lag = -np.sum(h_dot * resid) / np.sum(h_dot * h_dot)
     return {
         "rate_median_dps": float(np.median(rate)), "rate_p99_dps": float(np.percentile(rate, 99)),
+        "rate_rms_dps": [float(x) for x in np.degrees(np.sqrt(np.mean(gyro[sel] ** 2, axis=0)))],
         "accel_rms_mps2": float(np.sqrt(np.mean(np.sum(kin ** 2, axis=1)))),
         "accel_median_hz": float(f_hz[np.searchsorted(cum, 0.5 * cum[-1])]),
         "high_accel_rms_mps2": float(np.sqrt(np.mean(np.sum(high_acc ** 2, axis=1)))),
