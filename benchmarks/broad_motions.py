@@ -34,6 +34,7 @@ from biso_cosim.compare import DEFAULT_MOTIONS, motion_dataset, run_method
 from biso_cosim.estimators import make_estimator
 from biso_cosim.frames import quat_conjugate, quat_multiply, quat_rotate, quat_to_rotvec
 from biso_cosim.motions import recording_statistics
+from biso_cosim.score.metrics import trial_rmse_deg
 from biso_cosim.score.readers import read_folder
 
 METHODS = ("biso_plus", "vqf", "imufusion")
@@ -145,14 +146,12 @@ def motion_statistics(name: str, seed: int) -> dict:
     return st
 
 
-def total_rmse_deg(q: np.ndarray, q_ref: np.ndarray, moving: np.ndarray) -> float:
-    """BROAD's total error 2 acos |e_w|, e = q ∘ q_ref⁻¹, RMS over the moving samples."""
-    ok = moving & np.all(np.isfinite(q_ref), axis=1)
-    e = quat_multiply(q[ok], quat_conjugate(q_ref[ok] / np.linalg.norm(q_ref[ok], axis=1, keepdims=True)))
-    return float(np.degrees(np.sqrt(np.mean((2.0 * np.arccos(np.clip(np.abs(e[:, 0]), 0.0, 1.0))) ** 2))))
-
-
 NO_OFFSET = "no_offset"  # biso_plus without its online magnetometer-offset estimate
+
+
+def total_rmse_deg(q: np.ndarray, d) -> float:
+    """BROAD's total RMSE (`biso_cosim.score.metrics`) of a motion dataset over its movement."""
+    return trial_rmse_deg(q, d.q_true, d.info["moving"])["total"]
 
 
 def _row(label: str, values: dict) -> str:
@@ -162,11 +161,10 @@ def _row(label: str, values: dict) -> str:
 
 
 def main() -> None:
-    root = Path(__file__).resolve().parents[1]
+    from score import shared_broad_dev  # benchmarks/score.py, beside this script
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    default = next((str(p / "shared" / "data" / "broad_dev") for p in root.parents
-                    if (p / "shared" / "data" / "broad_dev").is_dir()), "broad_dev")
-    ap.add_argument("dir", nargs="?", default=default)
+    ap.add_argument("dir", nargs="?", default=shared_broad_dev())
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--json", default=None, help="write the BROAD figures of part 1 to this file")
     ap.add_argument("--no-ranking", action="store_true")
@@ -222,10 +220,10 @@ def main() -> None:
         per_seed = []
         for seed in seeds:
             d = motion_dataset(name, seed)
-            errors = {m: total_rmse_deg(run_method(m, d), d.q_true, d.info["moving"]) for m in METHODS}
+            errors = {m: total_rmse_deg(run_method(m, d), d) for m in METHODS}
             q = make_estimator("biso_plus", d.fs_hz, declination_rad=d.declination_rad,
                                estimate_mag_offset=False).update(d.gyro_b, d.accel_b, d.mag_b).q_wb
-            per_seed.append({**errors, NO_OFFSET: total_rmse_deg(q, d.q_true, d.info["moving"])})
+            per_seed.append({**errors, NO_OFFSET: total_rmse_deg(q, d)})
         mean = {m: float(np.mean([p[m] for p in per_seed])) for m in (*METHODS, NO_OFFSET)}
         ratios = " ".join(f"{p['biso_plus'] / p['vqf']:.2f}" for p in per_seed)
         print(_row(f"{name} (seeds {args.seeds})", mean) + f"   (bp/VQF per seed {ratios})")
