@@ -7,11 +7,21 @@ from biso_cosim import frames as fr
 from biso_cosim import motions as mo
 
 
+def _as_compared(name):
+    """The motion's arguments as `biso-cosim compare` runs it (from rest, BROAD's set-up), the
+    rest shortened to 1 s."""
+    from biso_cosim.compare import MOTION_SETUP
+
+    return {**MOTION_SETUP.get(name, {}), "rest_s": 1.0} if name in MOTION_SETUP else {}
+
+
+@pytest.mark.parametrize("as_compared", [False, True], ids=["default", "as_compared"])
 @pytest.mark.parametrize("name", mo.motion_names())
-def test_rates_integrate_to_the_attitude(name):
+def test_rates_integrate_to_the_attitude(name, as_compared):
     """q(t + h) = q(t) ∘ exp(ω̄ h) to O(h³) with ω̄ the mean of the end rates (the remainder
-    of the trapezoid rule, h³ |ω̈|/12, bounded by h³ max |ω̈| for fast vibrations)."""
-    m = mo.make_motion(name, 2.0, 2000.0)
+    of the trapezoid rule, h³ |ω̈|/12, bounded by h³ max |ω̈| for fast vibrations); also
+    through a start from rest and with the comparison's arguments."""
+    m = mo.make_motion(name, 2.0, 2000.0, **(_as_compared(name) if as_compared else {}))
     h = 1.0 / m.fs_hz
     step = fr.quat_from_rotvec(0.5 * (m.omega_b[:-1] + m.omega_b[1:]) * h)
     err = fr.quat_angle_between(fr.quat_multiply(m.q_wb[:-1], step), m.q_wb[1:])
@@ -20,9 +30,10 @@ def test_rates_integrate_to_the_attitude(name):
     assert np.max(err) < 1e-8 * scale + h ** 3 * omega_dd
 
 
+@pytest.mark.parametrize("as_compared", [False, True], ids=["default", "as_compared"])
 @pytest.mark.parametrize("name", mo.motion_names())
-def test_specific_force_and_field_are_the_world_vectors_in_body_axes(name):
-    m = mo.make_motion(name, 1.0, 200.0)
+def test_specific_force_and_field_are_the_world_vectors_in_body_axes(name, as_compared):
+    m = mo.make_motion(name, 1.0, 200.0, **(_as_compared(name) if as_compared else {}))
     f_w = fr.quat_rotate(m.q_wb, m.specific_force_b)
     np.testing.assert_allclose(f_w, m.accel_w + [0.0, 0.0, 9.80665], atol=1e-9)
     np.testing.assert_allclose(fr.quat_rotate(m.q_wb, m.mag_b), m.mag_w, atol=1e-9)
@@ -157,3 +168,13 @@ def test_tumble_with_the_hands_acceleration():
     assert fast.name == "fast_tumble"
     i = np.arange(0, len(fast), 5)  # fast time i/500 s is slow time 2.6 i/500 s, sample 13 i/5
     np.testing.assert_allclose(fast.omega_b[i], 2.6 * slow.omega_b[i * 13 // 5], atol=1e-9)
+
+
+def test_the_acceleration_is_the_positions_second_derivative_through_the_start():
+    """``translation`` from rest (the comparison's arguments): accel_w = p̈ of its position,
+    also in the raised-cosine start where p̈(τ(t)) = p''(τ) τ'² + p'(τ) τ'' (central second
+    differences, O(h²))."""
+    m = mo.make_motion("translation", 3.0, 4000.0, seed=2, **_as_compared("translation"))
+    p, h = m.info["position_m"], 1.0 / m.fs_hz
+    second = (p[2:] - 2.0 * p[1:-1] + p[:-2]) / h ** 2
+    assert np.max(np.abs(second - m.accel_w[1:-1])) < 1e-3 * np.max(np.abs(m.accel_w))
