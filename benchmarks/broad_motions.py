@@ -197,7 +197,8 @@ def main() -> None:
           "residual it explains:")
     for name, st in real["trials"].items():
         grad = np.asarray(st["field_gradient_ut_per_m"])
-        print(f"  {name:34} |G| {np.linalg.norm(grad, 2):5.1f}  explains {100 * st['field_gradient_explained']:3.0f} %  "
+        explained = 100 * st["field_gradient_explained"]
+        print(f"  {name:34} |G| {np.linalg.norm(grad, 2):5.1f}  explains {explained:3.0f} %  "
               f"G {np.round(grad, 1).tolist()}")
     print(f"  mean where it explains over 40 %, symmetric and traceless (a field without sources): "
           f"{np.round(lab_gradient(real), 1).tolist()}")

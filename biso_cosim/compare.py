@@ -41,7 +41,8 @@ from biso_cosim.output import write_text_atomic
 __all__ = ["Dataset", "route_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
            "DEFAULT_MOTIONS", "format_table"]
 
-DEFAULT_MOTIONS = ("tumble", "fast_tumble", "shake", "magnet", "translation", "near_magnet", "vibration", "moving_start")
+DEFAULT_MOTIONS = ("tumble", "fast_tumble", "shake", "magnet", "translation", "near_magnet", "vibration",
+                   "moving_start")
 """Non-vehicle motions of the comparison (issue 4's targets; issue 23's BROAD-like ones)."""
 
 # Sensor configuration for the non-vehicle motions: tumbling reaches 5.7 rad/s, beyond the

@@ -384,7 +384,8 @@ def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distanc
     pos = 0.15 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
     acc = -0.15 * w[None, :] ** 2 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
     if warp is not None:
-        acc = acc * warp[1][:, None] ** 2 + 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:]) * warp[2][:, None]
+        vel = 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:])
+        acc = acc * warp[1][:, None] ** 2 + vel * warp[2][:, None]
     direction = np.array([0.6, -0.5, 0.62])
     direction /= np.linalg.norm(direction)
     r = distance_m * direction[None, :] + pos  # sensor relative to the magnet
