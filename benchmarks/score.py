@@ -37,13 +37,16 @@ def _timed(fn):
     return out, time.perf_counter() - w, time.process_time() - c
 
 
-def main() -> None:
+def shared_broad_dev() -> str:
+    """shared/data/broad_dev beside the repository, or beside a parent of a work tree."""
     root = Path(__file__).resolve().parents[1]
+    return next((str(p / "shared" / "data" / "broad_dev") for p in root.parents
+                 if (p / "shared" / "data" / "broad_dev").is_dir()), "broad_dev")
+
+
+def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    # shared/ beside the repository, or beside a parent of a work tree
-    default = next((str(p / "shared" / "data" / "broad_dev") for p in root.parents
-                    if (p / "shared" / "data" / "broad_dev").is_dir()), "broad_dev")
-    ap.add_argument("dir", nargs="?", default=default)
+    ap.add_argument("dir", nargs="?", default=shared_broad_dev())
     ap.add_argument("--method", action="append", default=None)
     args = ap.parse_args()
     methods = default_methods() if args.method is None else as_methods(args.method)

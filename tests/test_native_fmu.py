@@ -126,6 +126,28 @@ def test_binary_needs_only_libc_and_libm_and_exports_only_fmi(fmus, tmp_path, ve
         assert exported and all(s.startswith(f"fmi{version[-1]}") for s in exported), exported[:5]
 
 
+def test_fmi3_interface_types_other_than_co_simulation_are_refused_with_a_reason(fmus, tmp_path):
+    """fmi3InstantiateModelExchange / ScheduledExecution: NULL and a logged reason (FMI 3.0
+    §2.3.1: an FMU that does not provide an interface type returns NULL)."""
+    import ctypes
+
+    with zipfile.ZipFile(fmus["BisoEstimator-fmi3"]) as z:
+        binary = next(f for f in z.namelist() if f.startswith("binaries/"))
+        z.extract(binary, tmp_path)
+    lib = ctypes.CDLL(str(tmp_path / binary))
+    logged = []
+    log_type = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+    log = log_type(lambda env, status, category, message: logged.append((status, message.decode())))
+    common = [b"est", b"token", b"", ctypes.c_bool(False), ctypes.c_bool(False), None, log]
+    lib.fmi3InstantiateModelExchange.restype = ctypes.c_void_p
+    lib.fmi3InstantiateScheduledExecution.restype = ctypes.c_void_p
+    assert lib.fmi3InstantiateModelExchange(*common) is None
+    assert lib.fmi3InstantiateScheduledExecution(*common, None, None, None) is None
+    fmi3_error = 3
+    assert logged == [(fmi3_error, "fmi3InstantiateModelExchange: BisoEstimator is a co-simulation FMU only"),
+                      (fmi3_error, "fmi3InstantiateScheduledExecution: BisoEstimator is a co-simulation FMU only")]
+
+
 @pytest.mark.parametrize("version", ["fmi3"])  # FMI 2.0's SourceFiles: the same list (test above)
 def test_a_host_compiles_the_sources_into_a_working_binary(fmus, tmp_path, version):
     """What a host on another platform does: compile sources/ as the FMU describes them

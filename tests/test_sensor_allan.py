@@ -58,6 +58,10 @@ def test_aliasing_factor_of_decimation_behind_the_dlpf():
     assert math.sqrt(white_noise_aliasing(imu, "gyro")) == pytest.approx(1.0616, abs=5e-4)
     assert math.sqrt(white_noise_aliasing(imu, "accel")) == pytest.approx(1.0724, abs=5e-4)
     assert white_noise_aliasing(MPU9250("mpu9250", registers={"smplrt_div": 0}), "gyro") == 1.0
+    # the decimation the factor sums over: 1 kHz internal samples, 5 to an output at 200 Hz
+    assert imu.internal_samples_per_output("gyro") == imu.internal_samples_per_output("accel") == 5
+    with pytest.raises(ValueError, match="sensor must be 'gyro' or 'accel'"):
+        imu.internal_samples_per_output("mag")
 
 
 def test_short_static_run_follows_the_model():

@@ -96,7 +96,7 @@ def white_noise_aliasing(imu, sensor: str) -> float:
     """
     from biso_cosim.sensors.dlpf import frequency_response
 
-    per_output = int(imu._ch[0 if sensor == "gyro" else 1]["per_output"])
+    per_output = imu.internal_samples_per_output(sensor)
     if per_output <= 1:
         return 1.0
     design = imu.designs[sensor]
@@ -275,7 +275,7 @@ def _plot(curves, imu, path: Path, hours: float) -> None:
         ax.set_ylabel(f"Allan deviation ({unit})")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle(f"Static {imu.profile.name} (seed {imu._seed}), {hours:g} h at {imu.output_rate_hz:g} Hz ODR")
+    fig.suptitle(f"Static {imu.profile.name} (seed {imu.seed}), {hours:g} h at {imu.output_rate_hz:g} Hz ODR")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -272,6 +272,21 @@ class MPU9250:
         return self.errors.mag.asa.copy()
 
     @property
+    def seed(self) -> int | None:
+        """The seed the part and its noise stream were drawn from (None: fresh entropy)."""
+        return self._seed
+
+    def internal_samples_per_output(self, sensor: str) -> int:
+        """Internal (post-DLPF) samples the chip decimates to one output sample: the gyro's
+        ``registers.gyro_samples_per_output``, the accelerometer's over the same output
+        interval (0 when the interval holds no whole number of them)."""
+        if sensor == "gyro":
+            return int(self.registers.gyro_samples_per_output)
+        if sensor == "accel":
+            return int(self._accel_per_output)
+        raise ValueError(f"sensor must be 'gyro' or 'accel', got {sensor!r}")
+
+    @property
     def seed_entropy(self) -> int | list[int]:
         """The entropy of the seed sequence (equal to ``seed`` when one was given)."""
         return self._seed_sequence.entropy

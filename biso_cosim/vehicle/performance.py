@@ -85,7 +85,7 @@ def measure_performance(*, duration_s: float = 90.0, control_rate_hz: float = 50
     late = t >= 1.0
     slip = (rear[late] - front[late]) / np.maximum(front[late], 1e-3)
     top = float(speed.max())
-    _, gear = _available_torque(sim._drivetrain, False, float(rear[-1]))
+    _, gear = _available_torque(sim.drivetrain_coefficients, False, float(rear[-1]))
     return Performance(zero_to_100_s=zero_to_100, top_speed_mps=top, top_gear=int(gear),
                        max_slip_after_1s=float(slip.max()), max_rear_wheel_speed_mps=float(rear.max() * radius),
                        duration_s=float(t[-1]))

@@ -296,6 +296,14 @@ class VehicleSim:
         return self._controls
 
     @property
+    def drivetrain_coefficients(self) -> np.ndarray:
+        """The coefficients the drivetrain's kernels read (``drivetrain.drivetrain_coefficients``
+        of ``drivetrain``, this car's mass and geometry), as a read-only view."""
+        view = self._drivetrain.view()
+        view.flags.writeable = False
+        return view
+
+    @property
     def history_arrays(self) -> HistoryArrays:
         """The arrays a kernel reads a period's sensordata rows from (``HistoryArrays``)."""
         return self._history_arrays

@@ -2,9 +2,46 @@
    mode, clocks, configuration mode, binaries, derivatives, dependencies, and the variable
    types they have none of): each logs why and returns fmi3Error.
    Included once by each FMI 3.0 shell (src/fmi/fmi3.c, src/python/python_fmi3.c) after it defines
-   unsupported(instance, function, why), CHECK_INSTANCE and INST. */
+   unsupported(instance, function, why), CHECK_INSTANCE, INST and BISO_FMU_NAME. */
 #ifndef BISO_FMI3_UNSUPPORTED_H
 #define BISO_FMI3_UNSUPPORTED_H
+
+
+/* the interface types other than co-simulation: refused at instantiation */
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateModelExchange: " BISO_FMU_NAME " is a co-simulation FMU only");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateScheduledExecution: " BISO_FMU_NAME " is a co-simulation FMU only");
+    return NULL;
+}
 
 
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,

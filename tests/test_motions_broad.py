@@ -1,0 +1,177 @@
+"""The motions of `biso-cosim compare` against BROAD's real trials (issue 23): what they do to the
+sensor, measured alike (`motions.recording_statistics`) on BROAD's figures
+(tests/data/broad_dev_motion_statistics.json, written by `python benchmarks/broad_motions.py
+--json`), on two excerpts of BROAD's data (tests/data/README.md: CC BY 4.0) and on the motions as
+`compare.motion_dataset` makes them."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from biso_cosim import motions as mo
+from biso_cosim.compare import MOTION_REGISTERS, motion_dataset, motion_profile
+from biso_cosim.sensors import MPU9250, Registers
+
+DATA = Path(__file__).parent / "data"
+BROAD = json.loads((DATA / "broad_dev_motion_statistics.json").read_text())
+LAB_FIELD = BROAD["lab_field_enu_ut"]
+FS_BROAD = 2000.0 / 7.0
+G_BERLIN = 9.8128
+SEEDS = (0, 1, 2)
+
+
+def _trial(number: str) -> dict:
+    return next(st for name, st in BROAD["trials"].items() if name.startswith(number + "_"))
+
+
+def _excerpt(name: str) -> dict:
+    d = np.load(DATA / f"{name}_excerpt.npz")
+    return {k: d[k].astype(np.float64) if d[k].dtype != bool else d[k] for k in d.files}
+
+
+def _excerpt_statistics(name: str, **kw) -> dict:
+    d = _excerpt(name)
+    return mo.recording_statistics(FS_BROAD, d["imu_gyr"], d["imu_acc"], d["imu_mag"], d["opt_quat"],
+                                   g=G_BERLIN, **kw)
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    """The statistics of the motions as the comparison runs them, over their movement (the
+    vibration while it vibrates), against the true field; and the rest before the movement."""
+    out = {}
+    for name in ("tumble", "fast_tumble", "translation", "vibration"):
+        for seed in SEEDS:
+            d = motion_dataset(name, seed)
+            st = mo.recording_statistics(d.fs_hz, d.gyro_b, d.accel_b, d.mag_b, d.q_true,
+                                         moving=d.info.get("vibrating", d.info["moving"]),
+                                         field_w=d.info["field_enu_ut"])
+            rest = ~d.info["moving"]
+            st["rest_gyro_bias_dps"] = np.degrees(np.mean(d.gyro_b[rest], axis=0))
+            st["rest_mag_noise_ut"] = np.std(d.mag_b[rest & np.all(np.isfinite(d.mag_b), axis=1)], axis=0)
+            out[name, seed] = st
+    return out
+
+
+def test_recording_statistics_finds_a_known_offset_and_lag():
+    """The measuring tool on analytic truth: a field 10 ms late with an offset (1, −2, 0.5) µT is
+    found as such. Fitted with the offset, the field takes up part of the lag: under the
+    tumble's steady mean rotation a lag looks like a fixed turn of the field (here 1.2°), so
+    the lag is measured against a known field (BROAD: the lab's, from the rotation trials)."""
+    m = mo.make_motion("tumble", 20.0, 1000.0)
+    lag = 10
+    mag = np.concatenate([np.repeat(m.mag_b[:1], lag, axis=0), m.mag_b[:-lag]]) + [1.0, -2.0, 0.5]
+    st = mo.recording_statistics(m.fs_hz, m.omega_b, m.specific_force_b, mag, m.q_wb, field_w=m.earth_field_w)
+    np.testing.assert_allclose(st["mag_offset_ut"], [1.0, -2.0, 0.5], atol=0.05)
+    assert st["mag_lag_ms"] == pytest.approx(10.0, rel=0.01)
+    assert st["accel_rms_mps2"] < 1e-9 and st["rate_median_dps"] > 100.0
+    st = mo.recording_statistics(m.fs_hz, m.omega_b, m.specific_force_b, mag, m.q_wb)
+    np.testing.assert_allclose(st["mag_offset_ut"], [1.0, -2.0, 0.5], atol=0.05)
+    np.testing.assert_allclose(np.linalg.norm(st["field_enu_ut"]), np.linalg.norm(m.earth_field_w), rtol=1e-3)
+
+
+def test_the_shipped_figures_are_those_of_the_real_data():
+    """The excerpts give the figures of their whole trials: trial 07's starting rest (its gyro
+    bias and magnetometer noise), the field's lag under fast rotation; trial 27's vibration (a
+    tone at 44 Hz, 3.5–3.7 m/s² and 2.1 °/s RMS above 20 Hz) and the phone's field."""
+    d = _excerpt("07_undisturbed_fast_rotation_B")
+    rest = ~d["movement"]
+    t07 = _trial("07")
+    np.testing.assert_allclose(np.degrees(d["imu_gyr"][rest].mean(axis=0)), t07["rest_gyro_bias_dps"], atol=0.02)
+    np.testing.assert_allclose(d["imu_mag"][rest].std(axis=0), t07["rest_mag_noise_ut"], rtol=0.1)
+    st = _excerpt_statistics("07_undisturbed_fast_rotation_B", moving=d["movement"], field_w=LAB_FIELD)
+    assert st["mag_lag_ms"] == pytest.approx(t07["mag_lag_ms"], abs=1.0)
+    t27 = _trial("27")
+    st = _excerpt_statistics("27_disturbed_phone_vibration_B", field_w=LAB_FIELD)
+    assert st["high_accel_rms_mps2"] == pytest.approx(t27["high_accel_rms_mps2"], rel=0.1)
+    assert st["high_gyro_rms_dps"] == pytest.approx(t27["high_gyro_rms_dps"], rel=0.1)
+    assert st["high_accel_peak_hz"] == pytest.approx(t27["high_accel_peak_hz"], abs=0.5)
+    np.testing.assert_allclose(st["mag_offset_ut"], t27["mag_offset_lab_field_ut"], atol=0.35)
+
+
+def test_the_sensor_has_the_residuals_of_broads_calibrated_imu(simulated):
+    """Gyro bias and magnetometer noise at the starting rest, the magnetometer's offset and the
+    variation of its norm, and how late its field is against the gyro: of BROAD's size (the raw
+    `mpu9250` profile had a 10 µT offset tolerance, which cost every method 10–25° of heading)."""
+    undisturbed = [st for name, st in BROAD["trials"].items() if "_undisturbed_" in name]
+    real_bias = np.sqrt(np.mean([np.square(st["rest_gyro_bias_dps"]) for st in BROAD["trials"].values()]))
+    sim_bias = np.sqrt(np.mean([np.square(simulated["tumble", s]["rest_gyro_bias_dps"]) for s in SEEDS]))
+    assert 0.5 * real_bias < sim_bias < 2.0 * real_bias
+    real_noise = np.mean([st["rest_mag_noise_ut"] for st in BROAD["trials"].values()])
+    sim_noise = np.mean([simulated["tumble", s]["rest_mag_noise_ut"] for s in SEEDS])
+    assert sim_noise == pytest.approx(real_noise, rel=0.15)
+    largest_offset = max(np.linalg.norm(st["mag_offset_lab_field_ut"]) for st in undisturbed)
+    assert largest_offset < 1.0
+    assert all(np.linalg.norm(simulated["tumble", s]["mag_offset_ut"]) < 2.0 * largest_offset for s in SEEDS)
+    real_norm_std = np.mean([st["mag_norm_std_ut"] for st in undisturbed])
+    for s in SEEDS:
+        assert simulated["tumble", s]["mag_norm_std_ut"] == pytest.approx(real_norm_std, rel=0.3)
+    # the field against the gyro: BROAD's fast trials, where the lag is measured best
+    fast = [_trial(n) for n in ("07", "21", "29")]
+    real_skew = np.mean([st["mag_lag_ms"] - st["gyro_lag_ms"] for st in fast])
+    gyro_delay_ms = 1e3 * MPU9250(motion_profile(), registers=Registers(**MOTION_REGISTERS)).designs["gyro"].delay_s
+    for s in SEEDS:
+        assert simulated["fast_tumble", s]["mag_lag_ms"] - gyro_delay_ms == pytest.approx(real_skew, abs=1.5)
+
+
+def test_tumbles_turn_and_shake_the_sensor_as_broads_rotation_trials(simulated):
+    """`fast_tumble` has trial 07's rates, hand acceleration and field residual (the lag under
+    fast rotation); `tumble` lies between the slow trials 01, 05 and 07, with the rotation
+    trials' mean hand acceleration at their frequencies."""
+    slow, fast = [_trial("01"), _trial("05")], _trial("07")
+    for s in SEEDS:
+        st = simulated["fast_tumble", s]
+        assert st["rate_median_dps"] == pytest.approx(fast["rate_median_dps"], rel=0.1)
+        assert st["accel_rms_mps2"] == pytest.approx(fast["accel_rms_mps2"], rel=0.1)
+        assert st["mag_residual_ut"] == pytest.approx(fast["mag_residual_ut"], rel=0.15)
+        st = simulated["tumble", s]
+        assert max(t["rate_median_dps"] for t in slow) < st["rate_median_dps"] < fast["rate_median_dps"]
+        assert st["accel_rms_mps2"] == pytest.approx(np.mean([t["accel_rms_mps2"] for t in (*slow, fast)]), rel=0.1)
+        assert min(t["accel_median_hz"] for t in (*slow, fast)) - 0.5 < st["accel_median_hz"] \
+            < max(t["accel_median_hz"] for t in (*slow, fast))
+
+
+def test_translation_moves_and_turns_the_sensor_as_broads_fast_translation(simulated):
+    """Trial 15: the hand's acceleration (14 m/s² RMS at 1.3 Hz), its rotation at the same pace,
+    and the field's residual (the lab's gradient felt along the path, the lag)."""
+    real = _trial("15")
+    for s in SEEDS:
+        st = simulated["translation", s]
+        assert st["accel_rms_mps2"] == pytest.approx(real["accel_rms_mps2"], rel=0.1)
+        assert abs(st["accel_median_hz"] - real["accel_median_hz"]) < 0.5
+        assert st["rate_median_dps"] == pytest.approx(real["rate_median_dps"], rel=0.3)
+        np.testing.assert_allclose(st["rate_rms_dps"], real["rate_rms_dps"], rtol=0.15)
+        assert st["mag_residual_ut"] == pytest.approx(real["mag_residual_ut"], rel=0.15)
+
+
+def test_the_lab_gradient_is_the_one_measured_where_the_sensor_was_translated():
+    """BROAD's trials 11, 15, 27 (the sensor translated by decimetres): the field follows the
+    position with 3–4 µT/m, explaining 45–65 % of its residual; the translation's gradient is
+    their mean, symmetric and traceless as a field without sources."""
+    from biso_cosim.compare import MOTION_SETUP
+
+    grad = np.asarray(MOTION_SETUP["translation"]["field_gradient_ut_per_m"])
+    fits = [_trial(n) for n in ("11", "15", "27")]
+    assert all(st["field_gradient_explained"] > 0.4 for st in fits)
+    mean = np.mean([st["field_gradient_ut_per_m"] for st in fits], axis=0)
+    target = 0.5 * (mean + mean.T) - np.trace(mean) / 3.0 * np.eye(3)
+    np.testing.assert_allclose(grad, target, atol=0.06)
+    np.testing.assert_allclose(grad, grad.T)
+    assert abs(np.trace(grad)) < 1e-9
+    m = mo.make_motion("translation", 20.0, 200.0, field_gradient_ut_per_m=grad)
+    np.testing.assert_allclose(m.mag_w - m.earth_field_w, m.info["position_m"] @ grad.T, atol=1e-12)
+
+
+def test_vibration_shakes_the_sensor_and_carries_the_phone_as_broads_trial_27(simulated):
+    """Above 20 Hz the simulated MPU-9250 sees trial 27's vibration (its accelerometer and gyro
+    RMS within 10 % and 20 %), and its field carries the phone's offset all along (the sensor's
+    own residual, up to 1 µT per axis, on top)."""
+    real = _excerpt_statistics("27_disturbed_phone_vibration_B", field_w=LAB_FIELD)
+    np.testing.assert_allclose(mo.PHONE_FIELD_B_UT, _trial("27")["mag_offset_lab_field_ut"], atol=0.05)
+    for s in SEEDS:
+        st = simulated["vibration", s]
+        assert st["high_accel_rms_mps2"] == pytest.approx(real["high_accel_rms_mps2"], rel=0.1)
+        assert st["high_gyro_rms_dps"] == pytest.approx(real["high_gyro_rms_dps"], rel=0.2)
+        assert np.all(np.abs(np.subtract(st["mag_offset_ut"], mo.PHONE_FIELD_B_UT)) < 1.0 + 0.1)
