@@ -59,3 +59,16 @@ def test_the_cars_own_tyre_parameters_set_its_rear_slip_gradient():
     assert sim.estimator_defaults()["rear_slip_gradient_rad_per_g"] == pytest.approx(
         rear_slip_gradient_rad_per_g(sim.parameters, params=softer))
     assert sim.estimator_defaults()["rear_slip_gradient_rad_per_g"] > rear_slip_gradient_rad_per_g(sim.parameters)
+
+
+def test_the_vehicle_sim_builds_the_car_with_the_chassis_parameters_given():
+    """``VehicleSim(chassis_params=...)`` (what ``vehicle handling --chassis`` sets): the brakes'
+    front share is the balance asked for, their total torque the one asked for."""
+    from biso_cosim.vehicle.sim import VehicleSim
+    from biso_cosim.vehicle.tyres import BRAKES, ChassisParams
+
+    chassis = ChassisParams(brake_balance_front=0.6, brake_torque_nm=5000.0)
+    sim = VehicleSim(load_route("figure8"), chassis_params=chassis)
+    limits = sim.model.actuator_forcerange[[sim.model.actuator(n).id for n in BRAKES], 1]
+    assert limits.sum() == pytest.approx(5000.0)
+    assert (limits[0] + limits[1]) / limits.sum() == pytest.approx(0.6)

@@ -396,7 +396,7 @@ def report_markdown(result: dict) -> str:
             "| figure | measured | class (published) | within | source |", "|---|---|---|---|---|"]
     changed = [f"{k} = {v!r}" for group in result.get("parameters", {}).values() for k, v in group.items()]
     if changed:
-        rows[1:1] = [f"Parameters changed from the reference car's: {', '.join(changed)}.", ""]
+        rows[2:2] = [f"Parameters changed from the reference car's: {', '.join(changed)}.", ""]
     units = {"understeer_gradient_deg_per_g": "°/g", "max_lateral_accel_g": "g", "roll_gradient_deg_per_g": "°/g",
              "stopping_distance_100_m": "m"}
     for key, ((lo, hi), source) in PUBLISHED.items():
