@@ -79,10 +79,12 @@ def rolled(tmp_path_factory):
 
 @pytest.mark.xfail(strict=True, reason="open (issue 26): the slip-tyre car placed into the 63° flank meets "
                                        "contact loads of 7e6 N; the Magic Formula gets no load bound (FZMAX)")
-def test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite(tmp_path):
+def test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite(tmp_path, monkeypatch):
     """The magic_formula car on the flank: its first steps stay finite (MuJoCo would reset an
     unstable state and the run would go on from the reset, judged only 'partial')."""
     from biso_cosim.vehicle.tyres import tyre_states
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory
 
     sim = CoSimulation(_route_file(tmp_path, "flank", terrain=FLANK), duration_s=1.0, estimators=["poisson"])
     assert sim.vehicle.tyres == "magic_formula"
