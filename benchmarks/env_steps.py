@@ -134,7 +134,9 @@ def time_env(env, make_policy, steps: int, seed: int, clock=time.process_time):
 def bare_model(vehicle) -> mujoco.MjModel:
     """The vehicle's model without the sensor history the co-simulation reads its rows from
     (MuJoCo records it in every step: about 2 % of a step here): the bare physics."""
-    model, _ = build_model(vehicle.route.terrain, timestep_s=1.0 / vehicle.physics_rate_hz)
+    model, _ = build_model(vehicle.route.terrain, timestep_s=1.0 / vehicle.physics_rate_hz, tyres=vehicle.tyres,
+                           tyre_params=vehicle.tyre_params, chassis_params=vehicle.chassis_params,
+                           surface=vehicle.surface)
     return model
 
 

@@ -170,6 +170,7 @@ class VehicleSim:
         self.tyres = tyres
         self.surface = surface
         self.tyre_params = tyre_params
+        self.chassis_params = chassis_params
         self.model, self.patches = build_model(route.terrain, timestep_s=1.0 / physics_rate_hz,
                                                history_steps=self._history_steps, tyres=tyres,
                                                tyre_params=tyre_params, chassis_params=chassis_params,
