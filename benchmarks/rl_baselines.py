@@ -34,6 +34,9 @@ from biso_cosim.envs.baselines import AccelMagAttitude, PursuitDriver, paper_gai
 
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
+ENV_OPTIONS = {"AttitudeEstimation": {"action_type": "correction"}}
+"""Arguments of the environments trained here (besides their defaults): AttitudeEstimation's
+agent corrects its gyro-propagated estimate (docs/envs.md)."""
 EVALUATION_SEED = 1000  # seeds 1000, 1001, ... (tests/test_envs_tasks.py's)
 
 
@@ -60,8 +63,13 @@ def baselines(name, env, seeds):
     out["random"] = np.mean([r[0] for r in runs])
     if name == "AttitudeEstimation":
         out["info baseline: BISO (reference in info)"] = np.mean([r[1] for r in runs])
-        am = AccelMagAttitude(env)
-        out["accel+mag attitude (memoryless)"] = np.mean([episode_return(env, am, s, am.reset)[0] for s in seeds])
+        if env.unwrapped.action_type == "correction":
+            zero = np.zeros(env.action_space.shape, dtype=np.float32)
+            out["zero correction (gyro strapdown)"] = np.mean([episode_return(env, lambda o: zero, s)[0] for s in seeds])
+        absolute = gym.make(ENVS[name])  # (the same episodes, quaternion actions)
+        am = AccelMagAttitude(absolute)
+        out["accel+mag attitude (memoryless)"] = np.mean([episode_return(absolute, am, s, am.reset)[0]
+                                                          for s in seeds])
     elif name == "GainTuning":
         from biso_cosim.envs.gain_oracle import episode_errors
 
@@ -116,7 +124,8 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
                     checkpoint(self.model, self.model.get_env())
             return True
 
-    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
+    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, env_kwargs=ENV_OPTIONS.get(name),
+                       vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
     vec = VecNormalize(vec, gamma=0.99)
     model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu")
     start = time.perf_counter()
@@ -164,7 +173,7 @@ def main():
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
     table = []
     for name in args.envs:
-        env = gym.make(ENVS[name])
+        env = gym.make(ENVS[name], **ENV_OPTIONS.get(name, {}))
         print(f"== {name}: {args.timesteps} steps per algorithm, evaluation seeds {seeds[0]}..{seeds[-1]}", flush=True)
         if args.speed_steps:
             for n in (1, 2):
@@ -182,7 +191,7 @@ def main():
                 source = pathlib.Path(args.load_dir)
                 model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
                 vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
-                                        DummyVecEnv([lambda: gym.make(ENVS[name])]))
+                                        DummyVecEnv([lambda: gym.make(ENVS[name], **ENV_OPTIONS.get(name, {}))]))
                 vec.training = False
                 label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
                 rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))

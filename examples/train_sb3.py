@@ -22,6 +22,7 @@ import biso_cosim.envs  # noqa: F401  (registers the ids: make_vec_env takes the
 
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
+OPTIONS = {"AttitudeEstimation": {"action_type": "correction"}}  # (the residual agent: docs/envs.md)
 
 
 def main():
@@ -39,7 +40,8 @@ def main():
 
     torch.set_num_threads(1)  # (a second intra-op thread only spins for SB3's small networks on 2 cores)
 
-    vec = make_vec_env(ENVS[args.env], n_envs=args.n_envs, seed=0,
+    options = OPTIONS.get(args.env, {})
+    vec = make_vec_env(ENVS[args.env], n_envs=args.n_envs, seed=0, env_kwargs=options,
                        vec_env_cls=SubprocVecEnv if args.n_envs > 1 else None)
     vec = VecNormalize(vec)
     model = (PPO if args.algo == "ppo" else SAC)("MlpPolicy", vec, seed=0, verbose=1, device="cpu")
@@ -49,7 +51,7 @@ def main():
         model.save(args.save)
         vec.save(args.save.removesuffix(".zip") + "_vecnormalize.pkl")
 
-    env = gym.make(ENVS[args.env])
+    env = gym.make(ENVS[args.env], **options)
     returns = []
     for seed in range(1000, 1000 + args.episodes):
         obs, info = env.reset(seed=seed)
