@@ -7,15 +7,20 @@ return over the evaluation seeds (deterministic policy) next to
 
 * random: uniform actions from the action space (seeded);
 * info baseline: AttitudeEstimation, the reference BISO in ``info`` (the return a policy
-  answering with it would get) and the memoryless accelerometer+magnetometer attitude;
+  answering with it would get), the memoryless accelerometer+magnetometer attitude and the
+  residual agent's zero action (gyro dead reckoning from the accelerometer+magnetometer
+  attitude at the start);
   GainTuning, the paper's gains as a constant action; Driving, ``PursuitDriver``;
 * GainTuning's oracle: the best constant gains of each episode (``gain_oracle``), and the
   best single constant over the evaluation episodes (from the same grid).
 
-Default hyperparameters of SB3 (``MlpPolicy``), observations and rewards normalised by
-``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``,
-wall time) measured over ``--speed-steps`` steps each. Needs the extra ``rl``
-(``pip install torch==2.13.0`` first on this machine: the local CPU build):
+Default hyperparameters of SB3 (``MlpPolicy``) but for ``biso_cosim.envs.training``'s
+(AttitudeEstimation's residual agent, with its environment arguments there, explores less at
+the start; GainTuning looks further ahead),
+observations and rewards normalised by ``VecNormalize``; training steps/s with 1 and with 2
+environments (``SubprocVecEnv``, wall time) measured over ``--speed-steps`` steps each.
+Needs the extra ``rl`` (``pip install torch==2.13.0`` first on this machine: the local CPU
+build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
     python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table
@@ -31,12 +36,10 @@ import numpy as np
 
 import biso_cosim.envs  # noqa: F401  (registers the ids)
 from biso_cosim.envs.baselines import AccelMagAttitude, PursuitDriver, paper_gains
+from biso_cosim.envs.training import algo_options, env_options
 
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
-ENV_OPTIONS = {"AttitudeEstimation": {"action_type": "correction"}}
-"""Arguments of the environments trained here (besides their defaults): AttitudeEstimation's
-agent corrects its gyro-propagated estimate (docs/envs.md)."""
 EVALUATION_SEED = 1000  # seeds 1000, 1001, ... (tests/test_envs_tasks.py's)
 
 
@@ -124,10 +127,11 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
                     checkpoint(self.model, self.model.get_env())
             return True
 
-    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, env_kwargs=ENV_OPTIONS.get(name),
+    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, env_kwargs=env_options(name),
                        vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
-    vec = VecNormalize(vec, gamma=0.99)
-    model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu")
+    options = algo_options(name)
+    vec = VecNormalize(vec, gamma=options.get("gamma", 0.99))
+    model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu", **options)
     start = time.perf_counter()
     model.learn(total_timesteps=timesteps, callback=Curve())
     rate = model.num_timesteps / (time.perf_counter() - start)  # (PPO collects whole rollouts of 2048 steps)
@@ -173,7 +177,7 @@ def main():
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
     table = []
     for name in args.envs:
-        env = gym.make(ENVS[name], **ENV_OPTIONS.get(name, {}))
+        env = gym.make(ENVS[name], **env_options(name))
         print(f"== {name}: {args.timesteps} steps per algorithm, evaluation seeds {seeds[0]}..{seeds[-1]}", flush=True)
         if args.speed_steps:
             for n in (1, 2):
@@ -191,7 +195,7 @@ def main():
                 source = pathlib.Path(args.load_dir)
                 model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
                 vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
-                                        DummyVecEnv([lambda: gym.make(ENVS[name], **ENV_OPTIONS.get(name, {}))]))
+                                        DummyVecEnv([lambda: gym.make(ENVS[name], **env_options(name))]))
                 vec.training = False
                 label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
                 rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))

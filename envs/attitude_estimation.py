@@ -67,12 +67,13 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     chooses the gains from the samples each step (e.g. trusting the accelerometer only while
     the car drives straight at constant speed). The range stops at τ rather than at the
     memoryless attitude so that an exploring policy's noise does not pull the estimate to
-    the accelerometer+magnetometer attitude whatever its mean (`docs/envs.md`).
+    the accelerometer+magnetometer attitude whatever its mean (`docs/envs.md`, "Why PPO did
+    not learn").
 
     ## Observation Space
     A bounded `Box(low, high, (9·n + 4,), float32)` (`9·n + 7` with `action_type="correction"`;
-    `+9` with GNSS, `+4` with `observe_baseline=True`): physical values divided by documented scales and clipped to
-    the bounds (`env.unwrapped.observation_fields` names each column,
+    `+9` with GNSS, `+4` with `observe_baseline=True`): physical values divided by documented
+    scales and clipped to the bounds (`env.unwrapped.observation_fields` names each column,
     `env.unwrapped.observation_scale` gives its unit's size, `split_observation(obs)` returns
     the parts in SI units, `physical_observation()` the exact float64 values), in this order
     (`env.unwrapped.observation_structure`):
@@ -211,8 +212,8 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self._estimate_q = self._observation_parts.get("estimate_q_wb", np.empty(4))
         self._prior_q = self._observation_parts.get("prior_q_wb", np.empty(4))
         self._innovation = self._observation_parts.get("innovation", np.empty(3))
-        decl = self._sim.earth.declination_rad
-        self._correction_constants = np.array([1.0 / self.imu_rate_hz, math.cos(0.5 * decl), math.sin(0.5 * decl)])
+        # Δt of the gyro propagation, cos(D/2), sin(D/2) of the site's declination (set at reset)
+        self._correction_constants = np.array([1.0 / self.imu_rate_hz, 1.0, 0.0])
         self._q = np.empty(4)  # a correction action's attitude
         tau = self.correction_time_constant_s
         self._gain_max = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0  # (the fraction a gain of 1 turns)
@@ -224,6 +225,8 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
         self._estimate_q[:] = (1.0, 0.0, 0.0, 0.0)
+        declination = self._sim.earth.declination_rad  # (a random route's site may differ)
+        self._correction_constants[1:] = (math.cos(0.5 * declination), math.sin(0.5 * declination))
         self._first_period()
         if self.action_type == "correction":  # the first prior: the accelerometer+magnetometer attitude
             self._prior_q[:] = quat_multiply(self._prior_q, quat_from_rotvec(self._innovation))

@@ -185,7 +185,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     {arguments}
 
     ## Version History
-    * v0: Initial version.
+    * v0: Initial version; the gains' lag (`gain_time_constant_s`) added (2026-12-07).
     """
 
     ARGUMENTS = {

@@ -39,6 +39,17 @@ def capture_periods(core) -> list:
     return periods
 
 
+def run_episode(env, policy, seed):
+    """The return of an episode of ``policy`` (observation -> action), and its last info."""
+    obs, info = env.reset(seed=seed)
+    total = 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += reward
+        if terminated or truncated:
+            return total, info
+
+
 def straight_route(length_m=60.0, speed_mps=6.0):
     """An open straight road east, on flat ground."""
     return parse_route({
@@ -154,15 +165,6 @@ def test_the_zero_correction_beats_the_memoryless_attitude_and_full_correction_i
     time constant, 1 s by default, between the two)."""
     from biso_cosim.envs.baselines import AccelMagAttitude
 
-    def episode_return(env, policy, seed):
-        obs, _ = env.reset(seed=seed)
-        total = 0.0
-        while True:
-            obs, reward, terminated, truncated, _ = env.step(policy(obs))
-            total += reward
-            if terminated or truncated:
-                return total
-
     absolute = gym.make("biso_cosim/AttitudeEstimation-v0", episode_duration_s=20.0)
     correcting = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_time_constant_s=0.0,
                           episode_duration_s=20.0)
@@ -170,11 +172,12 @@ def test_the_zero_correction_beats_the_memoryless_attitude_and_full_correction_i
     memoryless = AccelMagAttitude(absolute)
     for seed in (1000, 1001):
         memoryless.reset()
-        reference = episode_return(absolute, memoryless, seed)
-        assert episode_return(correcting, lambda o: np.ones(3), seed) == pytest.approx(reference, rel=1e-6)  # (it sees float32)
-        assert episode_return(correcting, lambda o: np.zeros(3), seed) > 2.0 * reference  # (negative returns)
-        filtered = episode_return(default, lambda o: np.ones(3), seed)
-        assert episode_return(default, lambda o: np.zeros(3), seed) > filtered > reference
+        reference = run_episode(absolute, memoryless, seed)[0]
+        full = run_episode(correcting, lambda o: np.ones(3), seed)[0]
+        assert full == pytest.approx(reference, rel=1e-6)  # (the baseline sees float32)
+        assert run_episode(correcting, lambda o: np.zeros(3), seed)[0] > 2.0 * reference  # (negative returns)
+        filtered = run_episode(default, lambda o: np.ones(3), seed)[0]
+        assert run_episode(default, lambda o: np.zeros(3), seed)[0] > filtered > reference
 
 
 @pytest.mark.parametrize(("control_rate_hz", "physics_rate_hz"), [(50.0, 1000.0), (80.0, 2000.0), (40.0, 1000.0)])
@@ -569,16 +572,6 @@ def test_scripted_driver_completes_random_routes():
 EVALUATION_SEEDS = range(1000, 1005)  # benchmarks/rl_baselines.py's
 
 
-def drive_episode(env, policy, seed):
-    obs, info = env.reset(seed=seed)
-    total = 0.0
-    while True:
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
-        total += reward
-        if terminated or truncated:
-            return total, info
-
-
 def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
     """With the default dead-reckoned pose (the estimator's errors steer the car)."""
     from biso_cosim.envs.baselines import PursuitDriver
@@ -586,7 +579,7 @@ def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
     env = gym.make("biso_cosim/Driving-v0")
     policy = PursuitDriver(env)
     for seed in EVALUATION_SEEDS:
-        total, info = drive_episode(env, policy, seed)
+        total, info = run_episode(env, policy, seed)
         assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
         assert total > 0.8 * env.unwrapped.route.path.length_m  # progress dominates: 387 m of road
 
@@ -598,7 +591,7 @@ def test_pursuit_baseline_completes_every_evaluation_seed_of_random_routes():
     env = gym.make("biso_cosim/Driving-v0", route="random")
     policy = PursuitDriver(env)
     for seed in EVALUATION_SEEDS:
-        total, info = drive_episode(env, policy, seed)
+        total, info = run_episode(env, policy, seed)
         assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
 
 
