@@ -14,13 +14,12 @@ return over the evaluation seeds (deterministic policy) next to
 * GainTuning's oracle: the best constant gains of each episode (``gain_oracle``), and the
   best single constant over the evaluation episodes (from the same grid).
 
-Default hyperparameters of SB3 (``MlpPolicy``) but for ``biso_cosim.envs.training``'s
-(AttitudeEstimation's residual agent, with its environment arguments there, explores less at
-the start; GainTuning looks further ahead),
-observations and rewards normalised by ``VecNormalize``; training steps/s with 1 and with 2
-environments (``SubprocVecEnv``, wall time) measured over ``--speed-steps`` steps each.
-Needs the extra ``rl`` (``pip install torch==2.13.0`` first on this machine: the local CPU
-build):
+Default hyperparameters of SB3 (``MlpPolicy``) except those of ``biso_cosim.envs.training``
+(AttitudeEstimation's residual agent, with the environment arguments there, explores less at
+the start; GainTuning looks further ahead), observations and rewards normalised by
+``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``, wall
+time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip install
+torch==2.13.0`` first on this machine: the local CPU build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
     python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table

@@ -274,6 +274,14 @@ def test_gain_mapping_round_trips_and_hits_the_ends():
     assert (info["params"]["k"], info["params"]["k_p"]) == (PAPER_K, PAPER_K_P)
 
 
+@pytest.mark.parametrize(("env_id", "name"), [("biso_cosim/AttitudeEstimation-v0", "correction_time_constant_s"),
+                                              ("biso_cosim/GainTuning-v0", "gain_time_constant_s")])
+@pytest.mark.parametrize("value", [-1.0, float("nan"), "1 s", True])
+def test_bad_time_constants_are_refused(env_id, name, value):
+    with pytest.raises((ValueError, TypeError), match=name):
+        gym.make(env_id, **{name: value})
+
+
 def test_gains_follow_the_actions_with_their_lag():
     """The episode's first action sets the gains; each later one moves the gains in force
     (normalised) by 1 − exp(−dt/τ) of the way towards it; the values in force are theirs."""
