@@ -7,15 +7,19 @@ return over the evaluation seeds (deterministic policy) next to
 
 * random: uniform actions from the action space (seeded);
 * info baseline: AttitudeEstimation, the reference BISO in ``info`` (the return a policy
-  answering with it would get) and the memoryless accelerometer+magnetometer attitude;
+  answering with it would get), the memoryless accelerometer+magnetometer attitude and the
+  residual agent's zero action (gyro dead reckoning from the accelerometer+magnetometer
+  attitude at the start);
   GainTuning, the paper's gains as a constant action; Driving, ``PursuitDriver``;
 * GainTuning's oracle: the best constant gains of each episode (``gain_oracle``), and the
   best single constant over the evaluation episodes (from the same grid).
 
-Default hyperparameters of SB3 (``MlpPolicy``), observations and rewards normalised by
-``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``,
-wall time) measured over ``--speed-steps`` steps each. Needs the extra ``rl``
-(``pip install torch==2.13.0`` first on this machine: the local CPU build):
+Default hyperparameters of SB3 (``MlpPolicy``) except those of ``biso_cosim.envs.training``
+(AttitudeEstimation's residual agent, with the environment arguments there, explores less at
+the start; GainTuning looks further ahead), observations and rewards normalised by
+``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``, wall
+time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip install
+torch==2.13.0`` first on this machine: the local CPU build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
     python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table
@@ -31,6 +35,7 @@ import numpy as np
 
 import biso_cosim.envs  # noqa: F401  (registers the ids)
 from biso_cosim.envs.baselines import AccelMagAttitude, PursuitDriver, paper_gains
+from biso_cosim.envs.training import algo_options, env_options
 
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
@@ -60,8 +65,13 @@ def baselines(name, env, seeds):
     out["random"] = np.mean([r[0] for r in runs])
     if name == "AttitudeEstimation":
         out["info baseline: BISO (reference in info)"] = np.mean([r[1] for r in runs])
-        am = AccelMagAttitude(env)
-        out["accel+mag attitude (memoryless)"] = np.mean([episode_return(env, am, s, am.reset)[0] for s in seeds])
+        if env.unwrapped.action_type == "correction":
+            zero = np.zeros(env.action_space.shape, dtype=np.float32)
+            out["zero correction (gyro strapdown)"] = np.mean([episode_return(env, lambda o: zero, s)[0] for s in seeds])
+        absolute = gym.make(ENVS[name])  # (the same episodes, quaternion actions)
+        am = AccelMagAttitude(absolute)
+        out["accel+mag attitude (memoryless)"] = np.mean([episode_return(absolute, am, s, am.reset)[0]
+                                                          for s in seeds])
     elif name == "GainTuning":
         from biso_cosim.envs.gain_oracle import episode_errors
 
@@ -116,9 +126,11 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
                     checkpoint(self.model, self.model.get_env())
             return True
 
-    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
-    vec = VecNormalize(vec, gamma=0.99)
-    model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu")
+    vec = make_vec_env(ENVS[name], n_envs=n_envs, seed=seed, env_kwargs=env_options(name),
+                       vec_env_cls=SubprocVecEnv if n_envs > 1 else None)
+    options = algo_options(name)
+    vec = VecNormalize(vec, gamma=options.get("gamma", 0.99))
+    model = (PPO if algo == "ppo" else SAC)("MlpPolicy", vec, seed=seed, verbose=0, device="cpu", **options)
     start = time.perf_counter()
     model.learn(total_timesteps=timesteps, callback=Curve())
     rate = model.num_timesteps / (time.perf_counter() - start)  # (PPO collects whole rollouts of 2048 steps)
@@ -164,7 +176,7 @@ def main():
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
     table = []
     for name in args.envs:
-        env = gym.make(ENVS[name])
+        env = gym.make(ENVS[name], **env_options(name))
         print(f"== {name}: {args.timesteps} steps per algorithm, evaluation seeds {seeds[0]}..{seeds[-1]}", flush=True)
         if args.speed_steps:
             for n in (1, 2):
@@ -182,7 +194,7 @@ def main():
                 source = pathlib.Path(args.load_dir)
                 model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
                 vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
-                                        DummyVecEnv([lambda: gym.make(ENVS[name])]))
+                                        DummyVecEnv([lambda: gym.make(ENVS[name], **env_options(name))]))
                 vec.training = False
                 label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
                 rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))

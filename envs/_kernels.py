@@ -10,13 +10,16 @@ import numpy as np
 
 from biso_cosim._numba import jit
 from biso_cosim.estimators.biso import _cutoff_gains
-from biso_cosim.frames import _qmul, _qnormalize
+from biso_cosim.estimators._kernels import MAG_PARALLEL_SIN, _accel_ok, _mag_ok
+from biso_cosim.estimators.reference import _ref_triad
+from biso_cosim.frames import _qexp_rotvec, _qlog_rotvec, _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
 from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls
 
 __all__ = ["_scale_observation", "_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
-           "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work"]
+           "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work",
+           "_corrected", "_innovation", "_correction_work"]
 
 _Q0, _Q1 = TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.q_wb + 4  # a packed truth row's q_wb
 
@@ -83,30 +86,32 @@ def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, wheel_rates, dri
 
 
 @jit
-def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading_l, values):
+def _tune_closed(a, low, high, gains, scales, cutoff_index, ratio_index, reading_l, values, alpha):
     """GainTuning-v0's action for BISO tuned by f_c and r alone, in its closed form, when
-    it is inside [low, high] (``_inside``) and is not the ``gains`` in force: the values it
-    stands for into values[:m] (``params_from_action``: scales' rows are low, high / low,
-    high − low and 1 for a log scale), k and k_p into values[m], values[m + 1]
-    (``gains_from_cutoff`` of f_c, k_p times r; for ``BisoEstimator.retune``) and a into ``gains``.
-    Returns 1 then, 0 for the gains in force, and -1, with nothing written, when a is not
-    inside."""
+    it is inside [low, high] (``_inside``): the ``gains`` in force move by the fraction
+    ``alpha`` towards it (g + alpha · (a − g); 1: to a), and when that changes them, the
+    values they stand for into values[:m] (``params_from_action``: scales' rows are low,
+    high / low, high − low and 1 for a log scale), k and k_p into values[m], values[m + 1]
+    (``gains_from_cutoff`` of f_c, k_p times r; for ``BisoEstimator.retune``) and the new
+    gains into ``gains``. Returns 1 then, 0 when the gains stay, and -1, with nothing
+    written, when a is not inside."""
     if not _inside(a, low, high):
         return -1
     m = a.shape[0]
     same = True
     for i in range(m):
-        same = same and a[i] == gains[i]
+        g = gains[i] + alpha * (a[i] - gains[i])
+        same = same and g == gains[i]
+        values[i] = g  # (the new gains for now)
     if same:
         return 0
     for i in range(m):
-        u = 0.5 * (a[i] + 1.0)
+        gains[i] = values[i]
+        u = 0.5 * (values[i] + 1.0)
         values[i] = scales[0, i] * scales[1, i] ** u if scales[3, i] else scales[0, i] + u * scales[2, i]
     k, kp = _cutoff_gains(values[cutoff_index], reading_l)
     kp *= values[ratio_index]
     values[m], values[m + 1] = k, kp
-    for i in range(m):
-        gains[i] = a[i]
     return 1
 
 
@@ -186,6 +191,64 @@ def _attitude_period(window, gyro, accel, mag, fresh, baseline, baseline_q):
     if k:
         for j in range(4):
             baseline_q[j] = baseline[k - 1, j]
+
+
+@jit
+def _corrected(prior, a, innovation, gain_max, out):
+    """AttitudeEstimation-v0's correction action: out = prior ∘ exp(g ⊙ innovation), the
+    gains g_i = max(a_i, 0) · gain_max (0: the prior; 1 with gain_max 1: the
+    accelerometer+magnetometer attitude), normalised, w >= 0."""
+    g0, g1, g2 = max(a[0], 0.0) * gain_max, max(a[1], 0.0) * gain_max, max(a[2], 0.0) * gain_max
+    cw, cx, cy, cz = _qexp_rotvec(g0 * innovation[0], g1 * innovation[1], g2 * innovation[2])
+    w, x, y, z = _qmul(prior[0], prior[1], prior[2], prior[3], cw, cx, cy, cz)
+    w, x, y, z = _qnormalize(w, x, y, z)
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    out[0], out[1], out[2], out[3] = w, x, y, z
+
+
+@jit
+def _innovation(prior, f, m, cdh, sdh, out):
+    """The rotation vector (body axes, rad) from ``prior`` (unit) to the accelerometer+magnetometer
+    attitude of the specific force f and field m (TRIAD, declination D: cdh, sdh = cos(D/2),
+    sin(D/2); ``reference_attitude``'s expressions; without a usable field the heading is the
+    prior's): prior ∘ exp(out) is that attitude. Zeros without a usable specific force."""
+    fx, fy, fz = f[0], f[1], f[2]
+    ok, f2 = _accel_ok(fx, fy, fz)
+    if not ok:
+        out[0] = out[1] = out[2] = 0.0
+        return
+    mx, my, mz = m[0], m[1], m[2]
+    ex, ey, ez = my * fz - mz * fy, mz * fx - mx * fz, mx * fy - my * fx
+    e2 = ex * ex + ey * ey + ez * ez
+    mag_ok, m2 = _mag_ok(mx, my, mz)
+    mag_ok = mag_ok and e2 > (MAG_PARALLEL_SIN * MAG_PARALLEL_SIN) * m2 * f2
+    pw, px, py, pz = prior[0], prior[1], prior[2], prior[3]
+    q = _ref_triad(fx, fy, fz, f2, ex, ey, ez, e2, mag_ok, pw, px, py, pz, cdh, sdh)
+    d = _qmul(pw, -px, -py, -pz, q[0], q[1], q[2], q[3])
+    out[0], out[1], out[2] = _qlog_rotvec(d[0], d[1], d[2], d[3])
+
+
+@jit
+def _correction_period(window, gyro, accel, mag, fresh, baseline, baseline_q, estimate, dt, cdh, sdh, prior,
+                       innovation):
+    """AttitudeEstimation-v0's work after a period of k samples with correction actions:
+    ``_attitude_period``, and (k > 0) the prior, the agent's ``estimate`` rotated by
+    exp(ω_i dt) for each sample i in turn (normalised, w >= 0), and the ``_innovation`` of the
+    newest sample from it."""
+    _attitude_period(window, gyro, accel, mag, fresh, baseline, baseline_q)
+    k = gyro.shape[0]
+    if k == 0:
+        return
+    w, x, y, z = estimate[0], estimate[1], estimate[2], estimate[3]
+    for i in range(k):
+        cw, cx, cy, cz = _qexp_rotvec(gyro[i, 0] * dt, gyro[i, 1] * dt, gyro[i, 2] * dt)
+        w, x, y, z = _qmul(w, x, y, z, cw, cx, cy, cz)
+    w, x, y, z = _qnormalize(w, x, y, z)
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    prior[0], prior[1], prior[2], prior[3] = w, x, y, z
+    _innovation(prior, accel[k - 1], mag[k - 1], cdh, sdh, innovation)
 
 
 @jit
@@ -311,3 +374,13 @@ def _driving_work(samples, q, arrays):
     k = samples.gyro_b.shape[0]
     _driving_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k],
                     samples.truth, arrays[1], arrays[2], arrays[3], arrays[4], arrays[5], arrays[6])
+
+
+@jit
+def _correction_work(samples, q, arrays):
+    """``_correction_period`` (q: the baseline's; arrays: window, baseline_q, estimate,
+    constants (dt, cos(D/2), sin(D/2)), prior, innovation)."""
+    k = samples.gyro_b.shape[0]
+    c = arrays[3]
+    _correction_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k],
+                       arrays[1], arrays[2], c[0], c[1], c[2], arrays[4], arrays[5])

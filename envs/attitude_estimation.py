@@ -11,17 +11,18 @@ from gymnasium.utils import EzPickle
 
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work
-from biso_cosim.frames import quat_from_euler
+from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work, _corrected, _correction_work
+from biso_cosim.frames import quat_from_euler, quat_from_rotvec, quat_multiply
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
 __all__ = ["AttitudeEstimationEnv"]
 
-_ACTION_TYPES = ("quaternion", "euler")
+_ACTION_TYPES = ("quaternion", "euler", "correction")
 _QUATERNION_SCALES = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
+_INNOVATION_SCALES = {c: Scale(1.0, -math.pi, math.pi, "rad") for c in "xyz"}
 
 
 class AttitudeEstimationEnv(CosimEnv, EzPickle):
@@ -53,10 +54,26 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     | 2 | y | -1 | 1 | - |
     | 3 | z | -1 | 1 | - |
 
+    With `action_type="correction"` (the residual formulation, for learning agents) a
+    `Box(-1, 1, (3,), float32)`: gains g_i = max(a_i, 0) · (1 − exp(−dt/τ)) on the components
+    of the observed `innovation` δ (body axes x, y, z; τ = `correction_time_constant_s`), and
+    the estimate is `prior ∘ exp(g ⊙ δ)`: the agent's previous estimate propagated with the
+    step's gyro samples (`prior_q_wb`), turned by a fraction of the rotation to the
+    accelerometer+magnetometer attitude of the newest sample. Zero (or negative) actions are
+    gyro dead reckoning from the accelerometer+magnetometer attitude at the start (a far
+    better estimator than the memoryless attitude on the default calibrated part: tested);
+    a constant action of 1 is a complementary filter of time constant τ (1 s by default; with
+    τ = 0 the memoryless attitude itself, the `AccelMagAttitude` baseline: tested); a policy
+    chooses the gains from the samples each step (e.g. trusting the accelerometer only while
+    the car drives straight at constant speed). The range stops at τ rather than at the
+    memoryless attitude so that an exploring policy's noise does not pull the estimate to
+    the accelerometer+magnetometer attitude whatever its mean (`docs/envs.md`, "Why PPO did
+    not learn").
+
     ## Observation Space
-    A bounded `Box(low, high, (9·n + 4,), float32)` (`+9` with GNSS, `+4` with
-    `observe_baseline=True`): physical values divided by documented scales and clipped to
-    the bounds (`env.unwrapped.observation_fields` names each column,
+    A bounded `Box(low, high, (9·n + 4,), float32)` (`9·n + 7` with `action_type="correction"`;
+    `+9` with GNSS, `+4` with `observe_baseline=True`): physical values divided by documented
+    scales and clipped to the bounds (`env.unwrapped.observation_fields` names each column,
     `env.unwrapped.observation_scale` gives its unit's size, `split_observation(obs)` returns
     the parts in SI units, `physical_observation()` the exact float64 values), in this order
     (`env.unwrapped.observation_structure`):
@@ -82,6 +99,17 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
       the attitude from one step's accelerometer and magnetometer samples.
     - *baseline_q_wb (4), only with `observe_baseline=True`:* the reference estimator's
       attitude at the newest sample (for residual agents that correct it).
+
+    With `action_type="correction"` the parts after the IMU (and GNSS) are instead:
+
+    - *prior_q_wb (4):* the agent's previous estimate propagated with each of the step's gyro
+      samples ω_i in turn, `q ← q ∘ exp(ω_i Δt)` (Δt = 1/ODR), unit, w ≥ 0; at reset the
+      accelerometer+magnetometer attitude of the first observation's newest sample;
+    - *innovation (3):* the rotation vector δ (body axes, rad, |δ| ≤ π) with
+      `prior ∘ exp(δ)` = the accelerometer+magnetometer attitude of the newest sample (TRIAD
+      as `biso_cosim.estimators.reference_attitude`, the site's declination; without a usable
+      field the heading is the prior's; zero without a usable specific force; zero at reset);
+    - *baseline_q_wb (4), only with `observe_baseline=True`:* as above.
 
     The readings are what the chip delivers in SI: the part's errors (by default the
     residuals after the usual start-up calibration), noise, DLPF and quantisation included.
@@ -119,21 +147,27 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
 
     ## Version History
     * v0: Initial version: scripted driver on library or procedural routes, MPU-9250 at its
-      register-defined rate, optional GNSS receiver, BISO reference in `info`.
+      register-defined rate, optional GNSS receiver, BISO reference in `info`;
+      `action_type="correction"` added (2026-12-07).
     """
 
     ARGUMENTS = {
-        "action_type": '`"quaternion"` (q_wb, 4 numbers) or `"euler"` (roll, pitch, yaw in rad)',
+        "action_type": '`"quaternion"` (q_wb, 4 numbers), `"euler"` (roll, pitch, yaw in rad) or `"correction"` '
+                       "(gains on the innovation of the gyro-propagated estimate: see Action Space)",
         "estimator": "reference estimator whose estimate and error `info` reports "
                      "(`biso_cosim.estimators.estimator_names()`)",
         "estimator_params": "its parameters (`describe_estimator(name)`); the declination of the route's site is "
                             "set unless given",
         "observe_baseline": "append the reference estimate to the observation",
+        "correction_time_constant_s": 'with `action_type="correction"`: the time constant τ of the pull towards the '
+                                      "accelerometer+magnetometer attitude at gains of 1, s (a gain of 1 turns the "
+                                      "fraction 1 − exp(−dt/τ) of the innovation each step; 0: all of it)",
     }
     ACTION_NAMES = ("w", "x", "y", "z")
 
     def __init__(self, *, route: str | Route = "figure8", action_type: str = "quaternion", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None, observe_baseline: bool = False,
+                 correction_time_constant_s: float = 1.0,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -147,24 +181,42 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             raise ValueError(f"action_type must be one of {_ACTION_TYPES}, got {action_type!r}")
         if not isinstance(observe_baseline, (bool, np.bool_)):
             raise TypeError(f"observe_baseline must be True or False, got {observe_baseline!r}")
+        self.correction_time_constant_s = _check_number("correction_time_constant_s", correction_time_constant_s,
+                                                        low=0.0, high=3600.0)
+        """The time constant of the pull of gains of 1 towards the accelerometer+magnetometer attitude, s."""
         spec = EstimatorSpec(estimator, dict(estimator_params or {}), label="baseline")
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=(spec,))
         self.action_type = action_type
         self.observe_baseline = bool(observe_baseline)
         if action_type == "quaternion":
             self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        else:
+        elif action_type == "euler":
             self.ACTION_NAMES = ("roll", "pitch", "yaw")
             high = np.array([math.pi, 0.5 * math.pi, math.pi], dtype=np.float32)
             self.action_space = spaces.Box(-high, high, dtype=np.float32)
-        self._raw_structure["estimate_q_wb"] = (4,)
-        self._raw_scales["estimate_q_wb"] = _QUATERNION_SCALES
+        else:
+            self.ACTION_NAMES = ("gain_x", "gain_y", "gain_z")
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        if action_type == "correction":  # the prior the correction turns, and its innovation
+            self._raw_structure.update(prior_q_wb=(4,), innovation=(3,))
+            self._raw_scales.update(prior_q_wb=_QUATERNION_SCALES, innovation=_INNOVATION_SCALES)
+        else:
+            self._raw_structure["estimate_q_wb"] = (4,)
+            self._raw_scales["estimate_q_wb"] = _QUATERNION_SCALES
         if self.observe_baseline:
             self._raw_structure["baseline_q_wb"] = (4,)
             self._raw_scales["baseline_q_wb"] = _QUATERNION_SCALES
         self._set_observation_space()
-        # the agent's previous estimate, fed back (unit, w >= 0; identity at reset)
-        self._estimate_q = self._observation_parts["estimate_q_wb"]
+        # the agent's previous estimate (unit, w >= 0; identity at reset): fed back in the
+        # observation, or with corrections the start of the next prior
+        self._estimate_q = self._observation_parts.get("estimate_q_wb", np.empty(4))
+        self._prior_q = self._observation_parts.get("prior_q_wb", np.empty(4))
+        self._innovation = self._observation_parts.get("innovation", np.empty(3))
+        # Δt of the gyro propagation, cos(D/2), sin(D/2) of the site's declination (set at reset)
+        self._correction_constants = np.array([1.0 / self.imu_rate_hz, 1.0, 0.0])
+        self._q = np.empty(4)  # a correction action's attitude
+        tau = self.correction_time_constant_s
+        self._gain_max = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0  # (the fraction a gain of 1 turns)
         # the newest reference estimate (in the observation when observed)
         self._baseline_q = self._observation_parts.get("baseline_q_wb", np.empty(4))
         self._baseline_q[:] = (1.0, 0.0, 0.0, 0.0)
@@ -173,7 +225,13 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
         self._estimate_q[:] = (1.0, 0.0, 0.0, 0.0)
+        declination = self._sim.earth.declination_rad  # (a random route's site may differ)
+        self._correction_constants[1:] = (math.cos(0.5 * declination), math.sin(0.5 * declination))
         self._first_period()
+        if self.action_type == "correction":  # the first prior: the accelerometer+magnetometer attitude
+            self._prior_q[:] = quat_multiply(self._prior_q, quat_from_rotvec(self._innovation))
+            self._prior_q *= math.copysign(1.0, self._prior_q[0])
+            self._innovation[:] = 0.0
         info.update(self._state_info())
         info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
         return self._observation(), info
@@ -202,6 +260,9 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     def _action_attitude(self, a: np.ndarray) -> np.ndarray:
         """The attitude of a checked action as a quaternion of any non-zero length (the angle
         kernel normalises, so an action equal to an estimate scores exactly its error)."""
+        if self.action_type == "correction":
+            _corrected(self._prior_q, a, self._innovation, self._gain_max, self._q)
+            return self._q
         if self.action_type == "euler":
             return quat_from_euler(a[0], a[1], a[2])
         if not any(a.tolist()):
@@ -210,7 +271,12 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _period_work(self) -> PeriodWork:
-        """The IMU window and the reference estimator's newest estimate (``_attitude_period``)."""
+        """The IMU window and the reference estimator's newest estimate (``_attitude_period``);
+        with corrections also the prior and its innovation (``_correction_period``)."""
+        if self.action_type == "correction":
+            return PeriodWork(_correction_work, (self._window.values, self._baseline_q, self._estimate_q,
+                                                 self._correction_constants, self._prior_q, self._innovation),
+                              ("baseline",))
         return PeriodWork(_attitude_work, (self._window.values, self._baseline_q), ("baseline",))
 
     def _state_info(self) -> dict[str, Any]:

@@ -12,7 +12,7 @@ from gymnasium.utils import EzPickle
 
 from biso_cosim.cosim import EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale
+from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
@@ -101,7 +101,15 @@ class GainTuningEnv(CosimEnv, EzPickle):
     (a 10 Hz Butterworth design), for others their defaults. `info` reports its error every
     step as the baseline.
 
-    Gains change without a jump in the estimate (`Estimator.set_params`).
+    Gains change without a jump in the estimate (`Estimator.set_params`). They follow the
+    actions with a lag (`gain_time_constant_s`, default 1 s): the episode's first action sets
+    them, and each later one moves the gains in force (normalised, so f_c on its logarithmic
+    scale) by the fraction 1 − exp(−dt/τ) (2 % at 50 Hz) of the way towards it. A constant
+    action is a fixed tuning from the first step on (what the oracle searches), while an
+    exploring agent's step-to-step noise averages out instead of switching the filter's gains
+    by orders of magnitude every 20 ms, which makes the filter as bad as random actions
+    whatever the mean of the noise (its effective gains are those of the largest values
+    drawn; `docs/envs.md`, "Why PPO did not learn").
 
     The default episodes make the tuning a real trade-off that depends on the episode: a new
     procedurally generated route each episode (`route="random"`, 80–100 s: long enough for
@@ -177,7 +185,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
     {arguments}
 
     ## Version History
-    * v0: Initial version.
+    * v0: Initial version; the gains' lag (`gain_time_constant_s`) added (2026-12-07).
     """
 
     ARGUMENTS = {
@@ -188,12 +196,16 @@ class GainTuningEnv(CosimEnv, EzPickle):
         "die_temperature_c": "the MPU-9250's die temperature in the episodes, °C: (low, high) drawn uniformly per "
                              "episode from the sensor seed, a number, or None (the profile's `temperature.default`, "
                              "25 °C for the built-in profiles); constant within an episode",
+        "gain_time_constant_s": "time constant τ of the gains' lag, s: after the episode's first action each "
+                                "action moves the gains in force (normalised) by 1 − exp(−dt/τ) of the way "
+                                "towards it; 0: each action sets them",
     }
 
     def __init__(self, *, route: str | Route = "random", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None,
                  tuning: Mapping[str, tuple[float, float, str]] | None = None,
                  die_temperature_c: float | tuple[float, float] | None = (5.0, 45.0),
+                 gain_time_constant_s: float = 1.0,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = "mpu9250", sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -210,6 +222,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
             tuning = DEFAULT_TUNING[estimator]
         self.tuning = _check_tuning(estimator, tuning)
         self.die_temperature_c = _check_temperature(die_temperature_c)
+        self.gain_time_constant_s = _check_number("gain_time_constant_s", gain_time_constant_s, low=0.0, high=3600.0)
+        """Time constant of the gains' lag behind the actions, s (0: none)."""
         """The die temperature of the episodes: None (the profile's default), °C, or (low, high)."""
         self.estimator = estimator
         fixed = dict(estimator_params or {})
@@ -220,6 +234,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
             raise ValueError(f"estimator_params {clash} are tuned by the action; remove them")
         specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=specs)
+        tau = self.gain_time_constant_s
+        self._lag = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0
+        """The fraction of the way from the gains in force to the action that a step moves them."""
+        self._step_lag = 1.0  # this step's: 1 for the episode's first action
         self.ACTION_NAMES = tuple(self.tuning)
         # the action's map, a column per tuned parameter: low, high / low, high − low, 1 for a
         # logarithmic scale (``_values``; ``_tune_closed``)
@@ -359,6 +377,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         closed = self._closed_tuning and tuned.closed_form
         self._closed_version = tuned.arrays_version if closed else None
         self._gains[:] = self._initial_gains
+        self._step_lag = 1.0
         self._first_period()
         info.update(self._measure())
         info["params"] = self._params_in_force()
@@ -379,8 +398,12 @@ class GainTuningEnv(CosimEnv, EzPickle):
             self._tune_closed(action, tuned)
         else:
             a = self._check_action(action)
+            if self._step_lag != 1.0:
+                g = self._gains.tolist()
+                a = np.array([x + self._step_lag * (y - x) for x, y in zip(g, a.tolist())])
             if a.tolist() != self._gains.tolist():  # (lists: np.array_equal costs tens of µs in the loop)
                 self._set_gains(a)
+        self._step_lag = self._lag
         self._advance()
         info = self._measure()
         info["params"] = self._params_in_force()
@@ -392,7 +415,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     # ------------------------------------------------------------------ parts
     def _set_gains(self, a: np.ndarray) -> None:
-        """Set the tuned copy's parameters from a checked action (``retune``). The values
+        """Set the tuned copy's parameters from normalised gains (``retune``). The values
         in force are then the values the action stands for (with the cross-link ratio also
         the k and k_p derived from them), recorded with the parameter record they made."""
         values = self._values(a.tolist())
@@ -411,7 +434,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         a = self._action_array(action)
         space = self.action_space
         tune = (space.low, space.high, self._gains, self._scales, *self._closed_indices, self._reading == "L",
-                self._closed_values)
+                self._closed_values, self._step_lag)
         changed = _tune_closed(a, *tune)
         if changed < 0:  # not inside the bounds: refused (ValueError), or clipped and set
             changed = _tune_closed(self._bounded_action(a), *tune)

@@ -19,6 +19,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import VecNormalize
 
 import biso_cosim.envs  # noqa: F401  (registers the ids: make_vec_env takes the plain id)
+from biso_cosim.envs.training import algo_options, env_options
 
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
@@ -39,17 +40,19 @@ def main():
 
     torch.set_num_threads(1)  # (a second intra-op thread only spins for SB3's small networks on 2 cores)
 
-    vec = make_vec_env(ENVS[args.env], n_envs=args.n_envs, seed=0,
+    options = env_options(args.env)  # (and the hyperparameters: what benchmarks/rl_baselines.py trains with)
+    vec = make_vec_env(ENVS[args.env], n_envs=args.n_envs, seed=0, env_kwargs=options,
                        vec_env_cls=SubprocVecEnv if args.n_envs > 1 else None)
-    vec = VecNormalize(vec)
-    model = (PPO if args.algo == "ppo" else SAC)("MlpPolicy", vec, seed=0, verbose=1, device="cpu")
+    hyperparameters = algo_options(args.env)
+    vec = VecNormalize(vec, gamma=hyperparameters.get("gamma", 0.99))
+    model = (PPO if args.algo == "ppo" else SAC)("MlpPolicy", vec, seed=0, verbose=1, device="cpu", **hyperparameters)
     model.learn(total_timesteps=args.timesteps)
     vec.training = False
     if args.save:
         model.save(args.save)
         vec.save(args.save.removesuffix(".zip") + "_vecnormalize.pkl")
 
-    env = gym.make(ENVS[args.env])
+    env = gym.make(ENVS[args.env], **options)
     returns = []
     for seed in range(1000, 1000 + args.episodes):
         obs, info = env.reset(seed=seed)

@@ -173,7 +173,7 @@ def test_tune_closed_sets_the_gains_a_new_estimator_has(reading):
     tuned = make_estimator("biso", 200.0, cutoff_hz=0.1, reading=reading)
     scales = np.array([[0.0, 0.02], [math.nan, 50.0], [2.0, 0.98], [0.0, 1.0]])  # r linear in [0, 2], f_c log
     low, high, gains, values = -np.ones(2), np.ones(2), np.zeros(2), np.empty(4)
-    tune = (low, high, gains, scales, 1, 0, reading == "L", values)
+    tune = (low, high, gains, scales, 1, 0, reading == "L", values, 1.0)
     a = np.array([0.3, -0.4])
     assert _tune_closed(a, *tune) == 1
     ratio, cutoff = 0.0 + 0.5 * (0.3 + 1.0) * 2.0, 0.02 * 50.0 ** (0.5 * (-0.4 + 1.0))
@@ -188,6 +188,13 @@ def test_tune_closed_sets_the_gains_a_new_estimator_has(reading):
     for outside in ([1.2, 0.0], [0.0, math.nan]):
         assert _tune_closed(np.array(outside), *tune) == -1
         assert tuned.coefficients.tobytes() == made.coefficients.tobytes() and gains.tolist() == a.tolist()
+    # with a lag the gains move by the fraction alpha of the way, and the values are theirs
+    lagged = (low, high, gains, scales, 1, 0, reading == "L", values, 0.25)
+    assert _tune_closed(np.array([-0.5, 0.4]), *lagged) == 1
+    g = [0.3 + 0.25 * (-0.5 - 0.3), -0.4 + 0.25 * (0.4 + 0.4)]
+    ratio, cutoff = 0.0 + 0.5 * (g[0] + 1.0) * 2.0, 0.02 * 50.0 ** (0.5 * (g[1] + 1.0))
+    k, kp = gains_from_cutoff(cutoff, reading)
+    assert gains.tolist() == g and values.tolist() == [ratio, cutoff, k, kp * ratio]
 
 
 @pytest.mark.parametrize("use_truth", [False, True])

@@ -39,6 +39,17 @@ def capture_periods(core) -> list:
     return periods
 
 
+def run_episode(env, policy, seed):
+    """The return of an episode of ``policy`` (observation -> action), and its last info."""
+    obs, info = env.reset(seed=seed)
+    total = 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += reward
+        if terminated or truncated:
+            return total, info
+
+
 def straight_route(length_m=60.0, speed_mps=6.0):
     """An open straight road east, on flat ground."""
     return parse_route({
@@ -99,6 +110,74 @@ def test_baseline_as_the_action_scores_the_baseline_error():
         if terminated or truncated:
             break
     assert total == baseline_total and total < 0.0
+
+
+def _accel_mag_attitude(core, imu):
+    """The accelerometer+magnetometer attitude of the newest IMU row (physical units)."""
+    from biso_cosim.estimators import reference_attitude
+
+    return reference_attitude(imu[-1:, 3:6], imu[-1:, 6:9], declination_rad=core.sim.earth.declination_rad)[0]
+
+
+def _same_attitude(p, q, atol):
+    assert min(np.abs(p - q).max(), np.abs(p + q).max()) < atol
+
+
+def test_corrections_span_the_gyro_propagation_and_the_accel_mag_attitude():
+    """With ``action_type="correction"`` the episode starts at the accelerometer+magnetometer
+    attitude; the action's attitude is the prior (the previous estimate propagated with each
+    new gyro sample, a plain reference here) turned by max(a, 0) times the innovation (with
+    ``correction_time_constant_s=0``: gains of 1 turn all of it): zero (or negative) gains give
+    the prior, gains of 1 the accelerometer+magnetometer attitude of the newest sample; the
+    reward is minus its angle to the truth."""
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_time_constant_s=0.0,
+                   episode_duration_s=3.0)
+    env.reset(seed=3)
+    core = env.unwrapped
+    parts = core.physical_observation()
+    _same_attitude(parts["prior_q_wb"], _accel_mag_attitude(core, parts["imu"]), 1e-12)
+    assert parts["innovation"].tolist() == [0.0, 0.0, 0.0]
+    dt = 1.0 / core.imu_rate_hz
+    rng = np.random.default_rng(0)
+    for i in range(40):
+        parts = core.physical_observation()
+        gains = (np.zeros(3), -rng.uniform(0.0, 1.0, 3), np.ones(3), rng.uniform(0.0, 1.0, 3))[i % 4]
+        expected = quat_multiply(parts["prior_q_wb"], quat_from_rotvec(np.maximum(gains, 0.0) * parts["innovation"]))
+        if i % 4 == 2:  # gains of 1: the accelerometer+magnetometer attitude of the newest sample
+            _same_attitude(expected, _accel_mag_attitude(core, parts["imu"]), 1e-9)
+        q_true = _newest_q_wb(core)
+        _, reward, _, _, info = env.step(gains)
+        assert reward == pytest.approx(-quat_angle_between(expected, q_true), abs=1e-9)
+        after = core.physical_observation()
+        prior = expected
+        for omega in after["imu"][:, 0:3]:  # (every row is this step's at the default rates)
+            prior = quat_multiply(prior, quat_from_rotvec(omega * dt))
+        _same_attitude(after["prior_q_wb"], prior / np.linalg.norm(prior), 1e-12)
+        innovation = quat_multiply(after["prior_q_wb"] * [1, -1, -1, -1], _accel_mag_attitude(core, after["imu"]))
+        _same_attitude(quat_from_rotvec(after["innovation"]), innovation, 1e-9)
+
+
+def test_the_zero_correction_beats_the_memoryless_attitude_and_full_correction_is_it():
+    """The residual formulation is well posed: the zero action (the gyro propagation from the
+    accelerometer+magnetometer attitude at the start) is a far better estimator than the
+    memoryless accelerometer+magnetometer attitude, which is the action of gains 1 with
+    ``correction_time_constant_s=0`` (and a constant action a complementary filter of that
+    time constant, 1 s by default, between the two)."""
+    from biso_cosim.envs.baselines import AccelMagAttitude
+
+    absolute = gym.make("biso_cosim/AttitudeEstimation-v0", episode_duration_s=20.0)
+    correcting = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_time_constant_s=0.0,
+                          episode_duration_s=20.0)
+    default = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", episode_duration_s=20.0)
+    memoryless = AccelMagAttitude(absolute)
+    for seed in (1000, 1001):
+        memoryless.reset()
+        reference = run_episode(absolute, memoryless, seed)[0]
+        full = run_episode(correcting, lambda o: np.ones(3), seed)[0]
+        assert full == pytest.approx(reference, rel=1e-6)  # (the baseline sees float32)
+        assert run_episode(correcting, lambda o: np.zeros(3), seed)[0] > 2.0 * reference  # (negative returns)
+        filtered = run_episode(default, lambda o: np.ones(3), seed)[0]
+        assert run_episode(default, lambda o: np.zeros(3), seed)[0] > filtered > reference
 
 
 @pytest.mark.parametrize(("control_rate_hz", "physics_rate_hz"), [(50.0, 1000.0), (80.0, 2000.0), (40.0, 1000.0)])
@@ -195,8 +274,37 @@ def test_gain_mapping_round_trips_and_hits_the_ends():
     assert (info["params"]["k"], info["params"]["k_p"]) == (PAPER_K, PAPER_K_P)
 
 
+@pytest.mark.parametrize(("env_id", "name"), [("biso_cosim/AttitudeEstimation-v0", "correction_time_constant_s"),
+                                              ("biso_cosim/GainTuning-v0", "gain_time_constant_s")])
+@pytest.mark.parametrize("value", [-1.0, float("nan"), "1 s", True])
+def test_bad_time_constants_are_refused(env_id, name, value):
+    with pytest.raises((ValueError, TypeError), match=name):
+        gym.make(env_id, **{name: value})
+
+
+def test_gains_follow_the_actions_with_their_lag():
+    """The episode's first action sets the gains; each later one moves the gains in force
+    (normalised) by 1 − exp(−dt/τ) of the way towards it; the values in force are theirs."""
+    env = gym.make("biso_cosim/GainTuning-v0", episode_duration_s=2.0, gain_time_constant_s=0.5)
+    core = env.unwrapped
+    alpha = 1.0 - math.exp(-core.dt / 0.5)
+    rng = np.random.default_rng(1)
+    for seed in (2, 3):
+        env.reset(seed=seed)
+        gains = rng.uniform(-1.0, 1.0, 2)
+        _, _, _, _, info = env.step(gains)  # the first action: the gains at once
+        for i in range(30):
+            np.testing.assert_allclose(core.physical_observation()["gains"], gains, rtol=0, atol=1e-15)
+            values = core.params_from_action(gains)
+            assert info["params"]["cutoff_hz"] == pytest.approx(values["cutoff_hz"], rel=1e-14)
+            assert info["params"][CROSS_LINK_RATIO] == pytest.approx(values[CROSS_LINK_RATIO], rel=1e-14, abs=1e-15)
+            action = rng.uniform(-1.0, 1.0, 2) if i % 10 else gains  # (a repeated action: the gains stay)
+            _, _, _, _, info = env.step(action)
+            gains = gains + alpha * (action - gains)
+
+
 def test_tuned_estimator_equals_a_standalone_one_retuned_at_the_same_instants():
-    env = gym.make("biso_cosim/GainTuning-v0", episode_duration_s=2.0)
+    env = gym.make("biso_cosim/GainTuning-v0", episode_duration_s=2.0, gain_time_constant_s=0.0)
     obs, info = env.reset(seed=2)
     core = env.unwrapped
     standalone = make_estimator("biso", core.imu_rate_hz, declination_rad=core.sim.earth.declination_rad)
@@ -476,16 +584,6 @@ def test_scripted_driver_completes_random_routes():
 EVALUATION_SEEDS = range(1000, 1005)  # benchmarks/rl_baselines.py's
 
 
-def drive_episode(env, policy, seed):
-    obs, info = env.reset(seed=seed)
-    total = 0.0
-    while True:
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
-        total += reward
-        if terminated or truncated:
-            return total, info
-
-
 def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
     """With the default dead-reckoned pose (the estimator's errors steer the car)."""
     from biso_cosim.envs.baselines import PursuitDriver
@@ -493,7 +591,7 @@ def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
     env = gym.make("biso_cosim/Driving-v0")
     policy = PursuitDriver(env)
     for seed in EVALUATION_SEEDS:
-        total, info = drive_episode(env, policy, seed)
+        total, info = run_episode(env, policy, seed)
         assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
         assert total > 0.8 * env.unwrapped.route.path.length_m  # progress dominates: 387 m of road
 
@@ -505,7 +603,7 @@ def test_pursuit_baseline_completes_every_evaluation_seed_of_random_routes():
     env = gym.make("biso_cosim/Driving-v0", route="random")
     policy = PursuitDriver(env)
     for seed in EVALUATION_SEEDS:
-        total, info = drive_episode(env, policy, seed)
+        total, info = run_episode(env, policy, seed)
         assert info["finished"] and not info["off_route"] and not info["rolled_over"], seed
 
 
