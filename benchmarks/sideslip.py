@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from biso_cosim.compare import Dataset, run_method
+from biso_cosim.compare import Dataset, run_dataset, run_method
 from biso_cosim.cosim import CoSimulation
 from biso_cosim.estimators import make_estimator
 from biso_cosim.metrics import ANGLES, angle_errors_deg
@@ -85,18 +85,11 @@ def rear_axle_sideslip(truth) -> dict[str, float]:
 
 
 def drive(route, duration_s: float, seed: int) -> tuple[Dataset, object, bool]:
-    """The drive's dataset, built as ``compare.route_dataset`` builds it (wheel odometry at
-    the rear axle for biso_plus), and its truth at the samples."""
+    """The drive's dataset as ``compare.route_dataset`` builds it (``compare.run_dataset``:
+    wheel odometry at the rear axle for biso_plus, the car's D_r), and its truth at the samples."""
     sim = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
     res = sim.run()
-    radius = sim.vehicle.index.wheel_radius_m
-    odometry = 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius
-    gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(res.sensor["registers"].get("gyro_fs_sel", 0))]
-    data = Dataset(name=route.name, kind="route", seed=seed, fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
-                   gyro_b=res.imu.gyro_b, accel_b=res.imu.accel_b, mag_b=res.imu.mag_b, q_true=res.truth.q_wb,
-                   declination_rad=math.radians(res.site["declination_deg"]), speed_mps=odometry,
-                   vehicle_params=sim.vehicle.estimator_defaults(), gyro_range_rad_s=math.radians(gyro_fs))
-    return data, res.truth, bool(res.completed)
+    return run_dataset(sim, res), res.truth, bool(res.completed)
 
 
 def measure(route_name: str, tyres: str, duration_s: float, seed: int) -> dict:

@@ -44,7 +44,7 @@ from biso_cosim.output import write_text_atomic
 if TYPE_CHECKING:
     from biso_cosim.routes import Route
 
-__all__ = ["Dataset", "route_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
+__all__ = ["Dataset", "route_dataset", "run_dataset", "motion_dataset", "run_method", "compare", "METHODS", "DEFAULT_METHODS",
            "DEFAULT_MOTIONS", "format_table"]
 
 DEFAULT_MOTIONS = ("tumble", "fast_tumble", "shake", "magnet", "translation", "near_magnet", "vibration",
@@ -138,17 +138,22 @@ def route_dataset(route: str | Route, seed: int = 0, duration_s: float | None = 
     from biso_cosim.cosim import CoSimulation
 
     sim = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=("poisson",))
-    res = sim.run()
+    return run_dataset(sim, sim.run())
+
+
+def run_dataset(sim, result) -> Dataset:
+    """The samples of a finished run (``result`` of the co-simulation ``sim``) as a route
+    ``Dataset``: wheel odometry at the rear axle (mean rear wheel rate × wheel radius) and the
+    car's ``VehicleSim.estimator_defaults``."""
     radius = sim.vehicle.index.wheel_radius_m
-    odometry = 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius
-    gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(res.sensor["registers"].get("gyro_fs_sel", 0))]
+    odometry = 0.5 * (result.truth.wheel_rates[:, 2] + result.truth.wheel_rates[:, 3]) * radius
+    gyro_fs = {0: 250.0, 1: 500.0, 2: 1000.0, 3: 2000.0}[int(result.sensor["registers"].get("gyro_fs_sel", 0))]
     return Dataset(
-        name=route if isinstance(route, str) else route.name, kind="route", seed=seed,
-        fs_hz=float(res.sensor["output_rate_hz"]), t_s=res.t_s,
-        gyro_b=res.imu.gyro_b, accel_b=res.imu.accel_b, mag_b=res.imu.mag_b, q_true=res.truth.q_wb,
-        declination_rad=math.radians(res.site["declination_deg"]), speed_mps=odometry,
+        name=sim.route.name, kind="route", seed=sim.seed, fs_hz=float(result.sensor["output_rate_hz"]),
+        t_s=result.t_s, gyro_b=result.imu.gyro_b, accel_b=result.imu.accel_b, mag_b=result.imu.mag_b,
+        q_true=result.truth.q_wb, declination_rad=math.radians(result.site["declination_deg"]), speed_mps=odometry,
         vehicle_params=sim.vehicle.estimator_defaults(), gyro_range_rad_s=math.radians(gyro_fs),
-        info={"completed": res.completed, "field_enu_ut": res.site["field_enu_ut"]})
+        info={"completed": result.completed, "field_enu_ut": result.site["field_enu_ut"]})
 
 
 def motion_dataset(name: str, seed: int = 0, duration_s: float | None = None) -> Dataset:

@@ -14,7 +14,7 @@ from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work, _corrected, _correction_work
-from biso_cosim.frames import quat_from_euler, quat_from_rotvec, quat_multiply
+from biso_cosim.frames import quat_from_euler
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -23,6 +23,7 @@ __all__ = ["AttitudeEstimationEnv"]
 _ACTION_TYPES = ("quaternion", "euler", "correction")
 _QUATERNION_SCALES = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
 _INNOVATION_SCALES = {c: Scale(1.0, -math.pi, math.pi, "rad") for c in "xyz"}
+_FULL_CORRECTION = np.ones(3)  # gains of 1 with a gain_max of 1: the whole innovation
 
 
 class AttitudeEstimationEnv(CosimEnv, EzPickle):
@@ -229,8 +230,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self._correction_constants[1:] = (math.cos(0.5 * declination), math.sin(0.5 * declination))
         self._first_period()
         if self.action_type == "correction":  # the first prior: the accelerometer+magnetometer attitude
-            self._prior_q[:] = quat_multiply(self._prior_q, quat_from_rotvec(self._innovation))
-            self._prior_q *= math.copysign(1.0, self._prior_q[0])
+            _corrected(self._prior_q, _FULL_CORRECTION, self._innovation, 1.0, self._prior_q)
             self._innovation[:] = 0.0
         info.update(self._state_info())
         info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])

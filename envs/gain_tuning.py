@@ -222,9 +222,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
             tuning = DEFAULT_TUNING[estimator]
         self.tuning = _check_tuning(estimator, tuning)
         self.die_temperature_c = _check_temperature(die_temperature_c)
+        """The die temperature of the episodes: None (the profile's default), °C, or (low, high)."""
         self.gain_time_constant_s = _check_number("gain_time_constant_s", gain_time_constant_s, low=0.0, high=3600.0)
         """Time constant of the gains' lag behind the actions, s (0: none)."""
-        """The die temperature of the episodes: None (the profile's default), °C, or (low, high)."""
         self.estimator = estimator
         fixed = dict(estimator_params or {})
         self.estimator_params = dict(fixed)
