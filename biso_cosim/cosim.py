@@ -38,7 +38,7 @@ from biso_cosim.routes import Route, load_route
 from biso_cosim.sensors import MPU9250, EarthField, ImuSamples, MagneticEnvironment
 from biso_cosim.vehicle.driver import DriverCommand
 from biso_cosim.vehicle._kernels import _wheel_odometry
-from biso_cosim.vehicle.sim import PHYSICS_STATE, Truth, VehicleSim
+from biso_cosim.vehicle.sim import PHYSICS_STATE, PhysicsDiverged, Truth, VehicleSim
 
 __all__ = ["EstimatorSpec", "CoSimulation", "CoSimState", "RunResult", "run_route", "DEFAULT_ESTIMATORS", "DEFAULT_SENSOR_PROFILE",
            "NAVIGATOR_PRESETS", "PeriodWork", "CONTROLS_APPLIED"]
@@ -489,7 +489,8 @@ class CoSimulation:
     def set_state(self, state: "CoSimState") -> None:
         """Restore a state from :meth:`get_state` of this co-simulation's set-up.
 
-        The logs are cut back to the state's time. A state later than the logs (from another
+        The logs are cut back to the state's time (a run whose physics diverged can go on
+        from an earlier state). A state later than the logs (from another
         instance, or after a reset) is restored too, but the log then starts afresh at the
         state's time, and the run's summary has no start-to-end figures.
         """
@@ -512,6 +513,7 @@ class CoSimulation:
             nav.set_state(copy.deepcopy(state.navigators[key]))
         self._chunks_done = state.chunks_done
         self._finished_chunk = state.finished_chunk
+        self.diverged = None  # a whole state again
         self._last_truth_row = None if state.last_truth_row is None else Truth(state.last_truth_row.copy())
         lengths = self._log_lengths()
         same_log = (state.log_generation == self._log_generation and state.log_origin_chunk == self._log_origin_chunk
@@ -544,6 +546,12 @@ class CoSimulation:
         self._finished_chunk: int | None = None
         self._nav_log: dict[str, list] = {k: [] for k in self.navigator_params}
         self._est_log: dict[str, list[Estimate]] = {k: [] for k in self.estimators}
+        self.diverged: PhysicsDiverged | None = None  # the physics could not go on (until reset)
+
+    def _check_physics(self) -> None:
+        """Refuse to go on from a state the physics could not continue (``diverged``)."""
+        if self.diverged is not None:
+            raise RuntimeError(f"this co-simulation's physics diverged ({self.diverged}); reset() it to run again")
 
     @property
     def done(self) -> bool:
@@ -560,12 +568,17 @@ class CoSimulation:
         ``CONTROLS_APPLIED``: as with a command, the controls the caller wrote into MuJoCo's
         ctrl (checked by the caller).
         """
-        if not self._loop_ready():
-            return self._sense(self._drive(command))
-        self._command(command)
-        rows, first, t_start = self.vehicle.step_period()  # rows None: still in MuJoCo's sensor history
-        self._period_done(command)
-        return self._sense_loop(rows, first, t_start)
+        self._check_physics()
+        try:
+            if not self._loop_ready():
+                return self._sense(self._drive(command))
+            self._command(command)
+            rows, first, t_start = self.vehicle.step_period()  # rows None: still in MuJoCo's sensor history
+            self._period_done(command)
+            return self._sense_loop(rows, first, t_start)
+        except PhysicsDiverged as exc:
+            self.diverged = exc
+            raise
 
     # ------------------------------------------------------------------ consumers
     def attach(self, work: PeriodWork) -> None:
@@ -863,6 +876,11 @@ class CoSimulation:
         ``stop_on_interrupt``: Ctrl-C (SIGINT, in the main thread) ends the run at the end of
         the control period under way instead of raising KeyboardInterrupt; the result holds
         what was simulated, with ``interrupted`` set (the CLI writes it and exits 130).
+
+        When the physics cannot go on (``PhysicsDiverged``: MuJoCo found the state unstable,
+        or a tyre force was not finite), the run ends after the last whole period; the result
+        holds it in ``diverged`` (time, reason; ``judge_run``: status ``diverged``, failed),
+        and the co-simulation refuses to step on until ``reset()``. Without a log it raises.
         """
         if block_periods is None:
             block_periods = 1 if any(isinstance(e, _UserEstimator) for e in self.estimators.values()) else 10
@@ -877,6 +895,7 @@ class CoSimulation:
         per_second = max(int(round(self.vehicle.control_rate_hz)), 1)
         block: list[Truth] = []
         stop = _InterruptFlag(stop_on_interrupt)
+        self._check_physics()
         try:
             while not self.done and not stop.raised:
                 block.append(self._drive())
@@ -885,6 +904,8 @@ class CoSimulation:
                     self._sense(Truth.concatenate(pending))
                 if bar is not None and self._chunks_done % per_second == 0:
                     bar.update(1)
+        except PhysicsDiverged as exc:  # the run ends with the periods before (status "diverged")
+            self.diverged = exc
         finally:
             if block:  # interrupted mid-block: the sensor and estimators catch up with the physics
                 self._sense(Truth.concatenate(block))
@@ -892,6 +913,8 @@ class CoSimulation:
                 bar.close()
             stop.restore()
         if not self.keep_log:
+            if self.diverged is not None:
+                raise self.diverged
             return None
         result = self.result(wall_time_s=time.perf_counter() - start)
         result.interrupted = stop.raised
@@ -921,6 +944,7 @@ class CoSimulation:
             specs={s.key: s for s in self.specs},
             seed=self.seed, duration_s=self._chunks_done / self.vehicle.control_rate_hz,
             wall_time_s=wall_time_s, completed=self.vehicle.driver.finished,
+            diverged=None if self.diverged is None else (self.diverged.t_s, str(self.diverged)),
             cross_track_m=np.asarray(self._log["cross_track_m"]),
             sensor={"profile": self.sensor_profile, "registers": self.registers,
                     "output_rate_hz": self.imu.output_rate_hz, "mag_rate_hz": self.imu.mag_rate_hz,
@@ -1027,6 +1051,7 @@ class RunResult:
     finished_at_s: float | None = None
     progress_m: np.ndarray | None = None  # the driver's progress along the route, per control period
     interrupted: bool = False  # ended by Ctrl-C (``run(stop_on_interrupt=True)``)
+    diverged: tuple[float, str] | None = None  # (t_s, reason): the physics could not go on (``PhysicsDiverged``)
 
     @property
     def t_s(self) -> np.ndarray:

@@ -6,6 +6,7 @@ tells, from the run's own truth and the driver's log, which of these happened fi
 
 | status | when | bound |
 |---|---|---|
+| ``diverged`` | the physics could not go on (``PhysicsDiverged``: MuJoCo found the state unstable and would have reset it, or a tyre force was not finite); the run ended there | |
 | ``rolled_over`` | the body's z axis tilts from the vertical by more than ``ROLLOVER_TILT_DEG`` | 60° |
 | ``left_route`` | the driver's cross-track distance exceeds ``CROSS_TRACK_BOUND_M`` | 5 m |
 | ``stuck`` | after the start-up wait and before the finish, the driver's progress along the route grows by less than ``STUCK_PROGRESS_M`` in ``stuck_window_s(route)`` | 1 m in max(20 s, longest stop + 10 s) |
@@ -53,7 +54,7 @@ FINISH_MARGIN_S = 10.0
 """A run that lasted the route's nominal duration and this much more should have finished
 (the default duration of ``biso-cosim run`` is the nominal duration + 10 s)."""
 
-FAILED = ("rolled_over", "left_route", "stuck", "incomplete")
+FAILED = ("diverged", "rolled_over", "left_route", "stuck", "incomplete")
 """The statuses of a failed run."""
 
 EXIT_RUN_FAILED = 3
@@ -141,10 +142,17 @@ def _stuck(result) -> RunStatus | None:
                               f"(less than {STUCK_PROGRESS_M:g} m of progress in {window_s:g} s)", t)
 
 
+def _diverged(result) -> RunStatus | None:
+    if result.diverged is None:
+        return None
+    t, reason = result.diverged
+    return RunStatus("diverged", f"{reason}; the run stopped there", t)
+
+
 def judge_run(result) -> RunStatus:
     """The status of a :class:`biso_cosim.cosim.RunResult` (see the module doc): the earliest
     failure, else whether the route was completed."""
-    events = [e for e in (_rollover(result), _left_route(result), _stuck(result)) if e is not None]
+    events = [e for e in (_diverged(result), _rollover(result), _left_route(result), _stuck(result)) if e is not None]
     if events:
         return min(events, key=lambda e: e.t_s)
     route = result.route

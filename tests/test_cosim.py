@@ -488,9 +488,12 @@ def test_period_plan_gives_way_to_whatever_replaces_its_arrays(change):
 @pytest.mark.parametrize("reuse", [False, True])
 def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, case, reuse):
     """step() leaves a period's rows in MuJoCo's sensor history for the period kernel; after
-    a MuJoCo warning (here a diverged state that MuJoCo resets) the period is stepped again,
-    and a period longer than the history is stepped through ``VehicleSim.step_rows``: either way the
-    numbers of the general path, also from the arguments an environment's periods reuse."""
+    a MuJoCo warning (here a non-finite control, which MuJoCo zeroes and goes on) the period is
+    stepped again, and a period longer than the history is stepped through
+    ``VehicleSim.step_rows``: either way the numbers of the general path, also from the
+    arguments an environment's periods reuse."""
+    from biso_cosim.cosim import CONTROLS_APPLIED
+
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     rate = 4.0 if case == "long_period" else 50.0
     fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate,
@@ -498,14 +501,41 @@ def test_step_reads_the_sensor_history_or_steps_again(tmp_path, monkeypatch, cas
     general = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",), control_rate_hz=rate)
     general.fast_path = False
     for period in range(6):
+        command = None
         if case == "warning" and period == 3:
-            fused.vehicle.data.qvel[0] = general.vehicle.data.qvel[0] = 1e11
-        samples, truth, outputs = fused.step()
-        want_samples, want_truth, want_outputs = general.step()
+            for sim in (fused, general):  # the last period's controls, the steering not finite
+                sim.vehicle.data.ctrl[sim.vehicle.index.steer] = np.nan
+            command = CONTROLS_APPLIED
+        samples, truth, outputs = fused.step(command)
+        want_samples, want_truth, want_outputs = general.step(command)
         _assert_same_samples(samples, want_samples)
         assert np.array_equal(truth.packed, want_truth.packed)
         assert np.array_equal(outputs["biso_plus"].q_wb, want_outputs["biso_plus"].q_wb)
     assert fused.vehicle.periods_with_warnings == general.vehicle.periods_with_warnings == (case == "warning")
+
+
+def test_a_state_mujoco_resets_stops_both_paths_at_the_same_step(tmp_path, monkeypatch):
+    """A diverged state (MuJoCo would reset the data and go on): step() raises PhysicsDiverged
+    at the same step on the period kernel's path and on the general one, and refuses to go on."""
+    from biso_cosim.vehicle.sim import PhysicsDiverged
+
+    monkeypatch.chdir(tmp_path)
+    fused = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",))
+    general = CoSimulation("figure8", duration_s=2.0, seed=3, estimators=("biso_plus",))
+    general.fast_path = False
+    times = []
+    for sim in (fused, general):
+        for _ in range(3):
+            sim.step()
+        sim.vehicle.data.qvel[0] = 1e11
+        with pytest.raises(PhysicsDiverged, match=r"unstable at t = 0\.0600 s: MuJoCo found a non-finite or huge "
+                                                  r"velocity \(dof 0\)") as caught:
+            sim.step()
+        times.append(caught.value.t_s)
+        assert sim.diverged is caught.value
+        with pytest.raises(RuntimeError, match="physics diverged"):
+            sim.step()
+    assert times[0] == times[1] == pytest.approx(0.06)
 
 
 def test_wheel_odometry_is_the_front_wheels_times_cos_steering():

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -33,12 +34,9 @@ x_m = {length}
 y_m = 0.0
 """
 
-# a 4 m ridge whose crest runs 1.2 m beside the road, from behind the start: the car stands
-# on its 63° flank at t = 0 and falls over. The car is the coulomb one (tyres = "coulomb" in the
-# file): the magic_formula car placed there goes unstable in its first steps (the placement
-# presses its uphill wheels into the flank, MuJoCo solves loads of 7e6 N, far outside the
-# Magic Formula's load range; test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite)
-FLANK_TYRES = 'tyres = "coulomb"\n'
+# a 4 m ridge whose crest runs 1.2 m beside the road, from behind the start: the car is
+# placed on its 63° flank at t = 0, its uphill wheels pressed into the flank (MuJoCo solves
+# contact loads of 6e6 N there; the Magic Formula counts them as F_z,max), and lies over
 FLANK = """[[terrain.feature]]
 type = "ridge"
 x0_m = -20.0
@@ -73,33 +71,84 @@ def _tilt_deg(q):
 
 @pytest.fixture(scope="module")
 def rolled(tmp_path_factory):
-    path = _route_file(tmp_path_factory.mktemp("roll"), "flank", terrain=FLANK, top=FLANK_TYRES)
-    return path, CoSimulation(path, duration_s=3.0, estimators=["poisson"]).run()
+    path = _route_file(tmp_path_factory.mktemp("roll"), "flank", terrain=FLANK)
+    sim = CoSimulation(path, duration_s=3.0, estimators=["poisson"])
+    return path, sim.run(), sim
 
 
-@pytest.mark.xfail(strict=True, reason="open (issue 26): the slip-tyre car placed into the 63° flank meets "
-                                       "contact loads of 7e6 N; the Magic Formula gets no load bound (FZMAX)")
-def test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite(tmp_path, monkeypatch):
-    """The magic_formula car on the flank: its first steps stay finite (MuJoCo would reset an
-    unstable state and the run would go on from the reset, judged only 'partial')."""
-    from biso_cosim.vehicle.tyres import tyre_states
+def test_the_slip_tyre_car_placed_on_a_steep_flank_stays_finite(rolled):
+    """The magic_formula car pressed into the flank: MuJoCo never found the physics unstable
+    (it would reset the state and the run go on from there), and each tyre's force stays
+    within friction times F_z,max although its contact load is 6e6 N."""
+    from biso_cosim.vehicle.tyres import TYRES, tyre_states
 
-    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory
-
-    sim = CoSimulation(_route_file(tmp_path, "flank", terrain=FLANK), duration_s=1.0, estimators=["poisson"])
+    _, result, sim = rolled
     assert sim.vehicle.tyres == "magic_formula"
-    sim.vehicle.step(10)
-    assert np.all(tyre_states(sim.vehicle.model, sim.vehicle.data)["load_n"] < 20000.0)
+    assert sim.vehicle.periods_with_warnings == 0
+    assert np.all(np.isfinite(result.truth.q_wb)) and np.all(np.isfinite(result.imu.accel_b))
+    states = tyre_states(sim.vehicle.model, sim.vehicle.data)
+    assert states["load_n"].max() > 100 * TYRES.fzmax_n
+    bound = max(TYRES.pdx1, TYRES.pdy1) * TYRES.fzmax_n
+    assert np.all(np.hypot(states["fx_n"], states["fy_n"]) <= bound)
 
 
 def test_a_car_on_a_steep_flank_rolls_over(rolled):
-    _, result = rolled
+    _, result, _ = rolled
     status = judge_run(result)
     assert status.status == "rolled_over" and status.failed
     tilt = _tilt_deg(result.truth.q_wb)
     first = int(np.flatnonzero(tilt > ROLLOVER_TILT_DEG)[0])
     assert status.t_s == pytest.approx(result.t_s[first])
     assert f"t = {result.t_s[first]:.2f} s" in status.reason and "tilt" in status.reason
+
+
+def _diverging(tmp_path, spoil):
+    """A 4 s run on a straight road whose state ``spoil(sim)`` breaks after 1 s of driving."""
+    sim = CoSimulation(_route_file(tmp_path, "straight"), duration_s=4.0, estimators=["poisson"])
+    for _ in range(50):
+        sim.step()
+    spoil(sim)
+    return sim, sim.run()
+
+
+def _check_stopped_there(sim, result, reason):
+    status = judge_run(result)
+    assert status.status == "diverged" and status.failed
+    assert re.search(reason, status.reason) and status.t_s == pytest.approx(1.0, abs=0.021)
+    # the periods before are kept, whole and finite; the run refuses to go on from there
+    assert 0.98 <= result.duration_s <= 1.0 and result.t_s[-1] < status.t_s
+    assert np.all(np.isfinite(result.truth.q_wb)) and np.all(np.isfinite(result.estimates["poisson"][0]))
+    with pytest.raises(RuntimeError, match="physics diverged .*reset\\(\\) it to run again"):
+        sim.step()
+    sim.reset()
+    assert sim.diverged is None and np.all(np.isfinite(sim.step()[0].accel_b))
+
+
+def test_a_state_mujoco_finds_unstable_stops_the_run_there(tmp_path, monkeypatch):
+    """MuJoCo resets the data on a non-finite velocity and goes on; the run stops instead."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT
+
+    def spoil(sim):
+        sim.vehicle.data.qvel[0] = np.nan
+
+    sim, result = _diverging(tmp_path, spoil)
+    _check_stopped_there(sim, result, r"^the physics became unstable at t = 1\.0000 s: MuJoCo found a non-finite or "
+                                      r"huge velocity \(dof 0\) and reset the state; the run stopped there$")
+
+
+def test_a_non_finite_tyre_force_stops_the_run_at_its_time_and_wheel(tmp_path):
+    """The tyre plugin stops the step (mujoco.FatalError) on a non-finite force; the run ends there."""
+    from biso_cosim.vehicle.tyres import STATE_STRIDE, tyre_states
+
+    def spoil(sim):
+        model, data = sim.vehicle.model, sim.vehicle.data
+        adr = int(model.plugin_stateadr[0])
+        assert tyre_states(model, data)["slip_ratio"][2] == data.plugin_state[adr + 2 * STATE_STRIDE]
+        data.plugin_state[adr + 2 * STATE_STRIDE] = np.nan  # the slip ratio of wheel rl
+
+    sim, result = _diverging(tmp_path, spoil)
+    _check_stopped_there(sim, result, r"^the physics stopped at t = 1\.0000 s: biso\.tyres: the tyre force of wheel "
+                                      r"rl_tyre is not finite at t = 1\.000000 s")
 
 
 def test_a_car_that_drives_into_a_wall_is_stuck(tmp_path):
@@ -165,7 +214,7 @@ def test_completed_partial_and_incomplete(tmp_path):
 
 
 def test_cli_says_a_failed_run_first_writes_its_status_and_exits_3(rolled, tmp_path, capsys):
-    path, result = rolled
+    path, result, _ = rolled
     out = tmp_path / "run"
     rc = cli_main(["run", "--route", str(path), "--duration", "3", "--out", str(out), "--no-progress"])
     assert rc == EXIT_RUN_FAILED == 3
@@ -189,7 +238,7 @@ def test_cli_run_of_a_completed_route_exits_0(tmp_path, capsys):
 
 
 def test_the_route_test_kit_fails_a_failed_run_with_its_reason(rolled):
-    path, result = rolled
+    path, result, _ = rolled
     with pytest.raises(RouteRunFailed, match="rolled_over: the car rolled over at t = ") as caught:
         drive(str(path), "poisson", duration_s=3.0)
     assert caught.value.status.status == "rolled_over"

@@ -94,6 +94,19 @@ def test_cornering_stiffness_grows_less_than_the_load():
     assert [mu_y(f) for f in loads] == sorted((mu_y(f) for f in loads), reverse=True)
 
 
+def test_loads_beyond_the_range_of_validity_count_as_its_top():
+    """F_z,max (MF-Tyre's FZMAX): a larger load gives the forces at F_z,max, a smaller one its own."""
+    slips = (0.05, math.tan(math.radians(3.0)))
+    at_top = magic_formula(P.fzmax_n, *slips)
+    assert magic_formula(5.0 * P.fzmax_n, *slips) == at_top
+    assert magic_formula(7e6, *slips) == at_top
+    assert magic_formula(0.9 * P.fzmax_n, *slips) != at_top
+    lower = replace(TYRES, fzmax_n=6000.0)
+    assert magic_formula(8000.0, *slips, params=lower) == magic_formula(6000.0, *slips, params=lower)
+    with pytest.raises(ValueError, match=r"TyreParams\.fzmax_n must be above fz0_n \(4000 N\)"):
+        replace(TYRES, fzmax_n=3000.0).check()
+
+
 def test_parameters_out_of_range_are_refused_naming_them():
     for name, bad in (("pdx1", 0.0), ("pky1", -14.95), ("sigma_y_m", 5.0), ("fz0_n", float("nan"))):
         with pytest.raises(ValueError, match=rf"TyreParams\.{name} must be in \["):
@@ -388,7 +401,8 @@ def test_the_handling_command_refuses_bad_input_in_one_line(capsys, tmp_path):
              "ChassisParams.compliance_steer_rad_per_n must be in [0, 3e-05] rad/N, got 0.001"),
             ("--tyre", "pdy1=nan", "TyreParams.pdy1 must be in [0.1, 2] -, got nan"),
             ("--chassis", "abs=1", "--chassis must be NAME=VALUE with NAME one of brake_torque_nm, "
-                                   "brake_balance_front, abs_slip_target, abs_gain_per_s, abs_speed_min_mps, "
+                                   "brake_balance_front, brake_build_up_s, abs_slip_target, abs_gain_per_s, "
+                                   "abs_speed_min_mps, "
                                    "compliance_steer_rad_per_n, got 'abs=1'"),
             ("--tyre", "pky1=stiff", "--tyre pky1 must be a number, got 'stiff'")):
         assert main(["vehicle", "handling", "--out", str(tmp_path), option, setting]) == 2

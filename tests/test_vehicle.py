@@ -278,15 +278,15 @@ def check_rows_as_mj_step(a, b, periods):
 
 
 def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monkeypatch):
-    """A MuJoCo warning may come with a reset of the data, the sensor history with it: the
+    """A MuJoCo warning may come with a change of the data behind the sensor history: the
     period is then stepped again one mj_step at a time, so the rows are those of plain
-    mj_step calls (here MuJoCo resets a diverged state)."""
+    mj_step calls (here a non-finite control, which MuJoCo zeroes and goes on)."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT here
     route = circle_route(20.0, 6.0, laps=1)
     a, b = VehicleSim(route), VehicleSim(route)
     for sim in (a, b):
         sim.drive()
-        sim.data.qvel[0] = 1e11  # beyond mjMAXVAL: the next mj_step warns and resets the data
+        sim.data.ctrl[sim.index.steer] = np.nan  # the next mj_step warns and zeroes the controls
     truth = a.step()
     rows = []
     for _ in range(b.steps_per_control):
@@ -297,3 +297,24 @@ def test_a_period_with_a_mujoco_warning_steps_on_as_mj_step_does(tmp_path, monke
     a.reset()
     drive(a, 2.0)
     assert a.periods_with_warnings == 0
+
+
+def test_a_state_mujoco_would_reset_raises_physics_diverged_at_its_step(tmp_path, monkeypatch):
+    """A diverged state, on which MuJoCo resets the data and goes on: PhysicsDiverged at the
+    step it happened, by step and by step_rows alike; a reset car drives again."""
+    from biso_cosim.vehicle.sim import PhysicsDiverged
+
+    monkeypatch.chdir(tmp_path)
+    sim = VehicleSim(circle_route(20.0, 6.0, laps=1))
+    for _ in range(2):
+        sim.drive()
+        sim.step()
+    sim.drive()
+    sim.data.qvel[0] = 1e11  # beyond mjMAXVAL
+    with pytest.raises(PhysicsDiverged, match=r"^the physics became unstable at t = 0\.0400 s: MuJoCo found a "
+                                              r"non-finite or huge velocity \(dof 0\) and reset the state$") as caught:
+        sim.step()
+    assert caught.value.t_s == pytest.approx(0.04)
+    sim.reset()
+    drive(sim, 1.0)
+    assert np.all(np.isfinite(sim.data.qpos))

@@ -215,7 +215,8 @@ def limit_lateral_accel(points: list[SteadyPoint]) -> float:
 
 def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0, **car) -> float:
     """Distance (m) from full brakes at ``start_kmh`` to rest on a straight, flat road (``car``:
-    as ``steady_circle``'s)."""
+    as ``steady_circle``'s), counted from the brake command, as braking tests count from the
+    pedal: the brakes' build-up time included."""
     import mujoco
 
     from biso_cosim.vehicle.driver import DriverCommand
@@ -230,6 +231,8 @@ def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0, 
     for w in ("fl", "fr", "rl", "rr"):
         d.qvel[m.jnt_dofadr[m.joint(f"{w}_spin").id]] = v0 / sim.index.wheel_radius_m
     mujoco.mj_forward(m, d)
+    sim.apply(DriverCommand(steer_rad=0.0, drive=0.0, brake=0.0))  # rolling free: the brakes released,
+    sim.step(1)  # (their build-up with them) from the parked car's
     start = d.sensordata[sim.index.rear_axle_pos][:2].copy()
     brake = DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)
     for _ in range(int(20.0 * sim.control_rate_hz)):

@@ -22,7 +22,41 @@ from biso_cosim.vehicle.driver import DriverCommand, DriverParams, RouteDriver
 from biso_cosim.vehicle.drivetrain import AIR_DENSITY_KG_M3, DRIVETRAIN, DrivetrainParams, drivetrain_coefficients
 from biso_cosim.vehicle.model import CarIndex, build_model, vehicle_parameters
 
-__all__ = ["Truth", "VehicleSim", "ControlArrays", "HistoryArrays"]
+__all__ = ["Truth", "VehicleSim", "ControlArrays", "HistoryArrays", "PhysicsDiverged"]
+
+
+class PhysicsDiverged(RuntimeError):
+    """The physics cannot go on from here: MuJoCo found the state unstable (a non-finite or
+    huge position, velocity or acceleration, on which it resets the data to the model's
+    initial state and carries on: a run would drive on from there as if nothing happened), or
+    a step stopped with ``mujoco.FatalError`` (the tyre plugin on a non-finite force, naming
+    the wheel). ``t_s``: the time of the step that failed. Raised by the stepping methods of
+    :class:`VehicleSim`; ``CoSimulation.run`` ends the run there (its status ``diverged``)."""
+
+    def __init__(self, reason: str, t_s: float):
+        super().__init__(reason)
+        self.t_s = t_s
+
+
+_RESET_WARNINGS = {mujoco.mjtWarning.mjWARN_BADQPOS: "position", mujoco.mjtWarning.mjWARN_BADQVEL: "velocity",
+                   mujoco.mjtWarning.mjWARN_BADQACC: "acceleration"}
+"""MuJoCo's warnings on which it resets the data (engine_forward.c, mj_checkPos/Vel/Acc)."""
+
+
+def _mj_step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
+    """``mj_step(m, d, n)``, a step that stops (``mujoco.FatalError``) as PhysicsDiverged."""
+    try:
+        mujoco.mj_step(m, d, n)
+    except mujoco.FatalError as exc:
+        raise PhysicsDiverged(f"the physics stopped at t = {d.time:.4f} s: {exc}", float(d.time)) from None
+
+
+def _check_reset(d: mujoco.MjData, t_s: float) -> None:
+    """PhysicsDiverged when the step begun at ``t_s`` made MuJoCo reset the data."""
+    for warning, quantity in _RESET_WARNINGS.items():
+        if d.warning[warning].number:
+            raise PhysicsDiverged(f"the physics became unstable at t = {t_s:.4f} s: MuJoCo found a non-finite or huge "
+                                  f"{quantity} (dof {d.warning[warning].lastinfo}) and reset the state", t_s)
 
 
 class ControlArrays(NamedTuple):
@@ -262,7 +296,9 @@ class VehicleSim:
         if self._settled is None:
             mujoco.mj_forward(m, d)
             for _ in range(int(round(_SETTLE_S * self.physics_rate_hz))):
-                mujoco.mj_step(m, d)
+                t_s = d.time
+                _mj_step(m, d)
+                _check_reset(d, t_s)
             d.time = 0.0
             self._settled = (np.empty(mujoco.mj_stateSize(m, PHYSICS_STATE)), d.sensordata.copy())
             mujoco.mj_getState(m, d, self._settled[0], PHYSICS_STATE)
@@ -355,7 +391,7 @@ class VehicleSim:
         while done < n:
             k = min(n - done, self._history_steps)
             t_start = d.time
-            mujoco.mj_step(m, d, k)
+            _mj_step(m, d, k)
             outcome = _history_rows(self._history, self._history_layout, k, t_start, self._warnings,
                                     self._sensordata, rows[done:done + k])
             if outcome != HISTORY_READ:
@@ -381,7 +417,7 @@ class VehicleSim:
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._start_state, PHYSICS_STATE)
         t_start = d.time
-        mujoco.mj_step(m, d, n)
+        _mj_step(m, d, n)
         first = self.steps_done
         self.steps_done += n
         return None, first, t_start
@@ -391,12 +427,17 @@ class VehicleSim:
         after ``_history_rows`` could not read them (``outcome``, its code): MuJoCo warned (e.g. a bad velocity, on which it resets
         the data and goes on, history and all), or the clock was set back by hand. The period
         is stepped again from its start one mj_step at a time (the same steps), and the
-        history rings start afresh."""
+        history rings start afresh. PhysicsDiverged at the step on which MuJoCo reset the
+        data (a warning of ``_RESET_WARNINGS``); other warnings are counted
+        (``periods_with_warnings``) and the run goes on."""
         m, d = self.model, self.data
         self.periods_with_warnings += outcome == HISTORY_WARNED
         mujoco.mj_setState(m, d, self._start_state, PHYSICS_STATE)
+        self._warnings[:] = 0
         for i in range(rows.shape[0]):
-            mujoco.mj_step(m, d)
+            t_s = d.time
+            _mj_step(m, d)
+            _check_reset(d, t_s)
             rows[i] = d.sensordata
         self._warnings[:] = 0
         self._restart_history()

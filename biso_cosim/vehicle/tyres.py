@@ -65,7 +65,7 @@ Theory of Ground Vehicles (4th ed. 2008), Table 1.3 (dry asphalt 0.8-0.9, wet as
 
 # physical ranges of the parameters (closed intervals): what ``TyreParams.check`` accepts
 _RANGES = {
-    "fz0_n": (1000.0, 20000.0), "pcx1": (1.0, 2.0), "pdx1": (0.1, 2.0), "pdx2": (-1.0, 1.0),
+    "fz0_n": (1000.0, 20000.0), "fzmax_n": (2000.0, 50000.0), "pcx1": (1.0, 2.0), "pdx1": (0.1, 2.0), "pdx2": (-1.0, 1.0),
     "pex1": (-10.0, 1.0), "pex2": (-10.0, 10.0), "pex3": (-10.0, 10.0), "pkx1": (1.0, 100.0),
     "pkx2": (-50.0, 50.0), "pkx3": (-5.0, 5.0), "pcy1": (1.0, 2.0), "pdy1": (0.1, 2.0),
     "pdy2": (-1.0, 1.0), "pey1": (-10.0, 1.0), "pey2": (-10.0, 10.0), "pky1": (1.0, 100.0),
@@ -83,6 +83,12 @@ class TyreParams:
     the forces are odd in each slip."""
 
     fz0_n: float = param(4000.0, symbol="F_z0", unit="N", doc="nominal load", source=f"{_BOOK}: FNOMIN; {_TYRE}")
+    fzmax_n: float = param(10000.0, symbol="F_z,max", unit="N",
+                           doc="largest load the formulas see (a larger contact load counts as this much): the "
+                               "top of the tyre's range of validity",
+                           source="MF-Tyre property files' [VERTICAL_FORCE_RANGE] FZMAX, for which the formulas "
+                                  "are fitted; 10000 N = 2.5 F_z0 in the MF-Tyre 6.1 example file of a 205/60 R15 "
+                                  "car tyre at 2.2 bar (FNOMIN 4000 N), the class of this set")
     pcx1: float = param(1.685, symbol="p_Cx1", unit="-", doc="shape factor C_x", source=f"{_BOOK}: PCX1")
     pdx1: float = param(1.210, symbol="p_Dx1", unit="-", doc="longitudinal friction μ_x at F_z0", source=f"{_BOOK}: PDX1")
     pdx2: float = param(-0.037, symbol="p_Dx2", unit="-", doc="variation of μ_x with load", source=f"{_BOOK}: PDX2")
@@ -138,6 +144,8 @@ class TyreParams:
     def check(self) -> None:
         """ValueError naming the parameter and its range for a value out of physical range."""
         _check_ranges(self, _RANGES)
+        if not self.fzmax_n > self.fz0_n:
+            raise ValueError(f"TyreParams.fzmax_n must be above fz0_n ({self.fz0_n:g} N), got {self.fzmax_n!r}")
 
     def config(self, chassis: "ChassisParams | None" = None) -> dict[str, str]:
         """The plugin instance's configuration: every parameter by name, exactly (repr), with
@@ -168,10 +176,11 @@ TYRES = TyreParams()
 """The reference car's tyres."""
 
 _CHASSIS_RANGES = {
-    "brake_torque_nm": (1000.0, 20000.0), "brake_balance_front": (0.5, 0.9), "abs_slip_target": (0.03, 0.4),
+    "brake_torque_nm": (1000.0, 20000.0), "brake_balance_front": (0.5, 0.9), "brake_build_up_s": (0.0, 1.0),
+    "abs_slip_target": (0.03, 0.4),
     "abs_gain_per_s": (1.0, 1000.0), "abs_speed_min_mps": (0.1, 10.0), "compliance_steer_rad_per_n": (0.0, 3e-5),
 }
-_PLUGIN_CHASSIS = ("abs_slip_target", "abs_gain_per_s", "abs_speed_min_mps", "compliance_steer_rad_per_n")
+_PLUGIN_CHASSIS = ("brake_build_up_s", "abs_slip_target", "abs_gain_per_s", "abs_speed_min_mps", "compliance_steer_rad_per_n")
 """The ChassisParams the C plugin reads (the brakes' torque and balance are the model's actuators)."""
 
 
@@ -194,6 +203,14 @@ class ChassisParams:
                                               "z = 0.8 g is 0.76 for this car (l_r = 1.584 m, h = 0.524 m, "
                                               "L = 2.64 m; Wong, Theory of Ground Vehicles, §3.5): the front "
                                               "wheels lock first up to 0.76 g, the ABS handles beyond")
+    brake_build_up_s: float = param(0.2, symbol="t_s", unit="s",
+                                    doc="build-up time of the brakes (Schwelldauer: from the pressure's first rise "
+                                        "to full pressure): each brake's torque limit rises linearly from 0 over "
+                                        "t_s once its command turns positive (in the plugin); 0: at once",
+                                    source="about 0.2 s for the hydraulic brakes of passenger cars (0.1-0.3 s; the "
+                                           "accident-reconstruction convention, e.g. the Austrian court experts' "
+                                           "glossary 'Schwellzeit'); braking tests count it, measuring from the "
+                                           "pedal (DIN 70012)")
     abs_slip_target: float = param(0.12, symbol="κ_ABS", unit="-",
                                    doc="ABS: braking slip each wheel's modulator holds on dry asphalt (times "
                                        "the surface's λ_μ elsewhere, as the tyre's peak slip moves)",
@@ -377,12 +394,12 @@ def rear_slip_gradient_rad_per_g(vehicle: dict[str, float], tyres: str = DEFAULT
     return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
 
 
-STATE_STRIDE = 17
+STATE_STRIDE = 18
 """Numbers of the plugin state per wheel (tyres.c: slip ratio, lateral slip, load, F_x, F_y,
-in contact, the ABS's release of the brake torque, the friction scale under the tyre,
-heading (3), left (3), contact point (3))."""
+in contact, the ABS's release of the brake torque, the friction scale under the tyre, the
+brake's built-up share of its torque limit, heading (3), left (3), contact point (3))."""
 STATE_COLUMNS = ("slip_ratio", "lateral_slip", "load_n", "fx_n", "fy_n", "in_contact", "abs_release",
-                 "friction_scale")
+                 "friction_scale", "brake_build_up")
 
 
 def tyre_states(model, data) -> dict[str, np.ndarray]:

@@ -17,7 +17,8 @@
  *   velocity fades in (Pacejka's low-speed damping, cos-shaped).
  * - The vertical load is MuJoCo's: the normal forces of the tyre's contacts solved in the
  *   step before (the plugin's advance stores them; the tyre geoms have condim 1, so MuJoCo's
- *   contact carries the normal load only and these forces carry all friction).
+ *   contact carries the normal load only and these forces carry all friction), held at
+ *   fzmax_n in the formulas (MF-Tyre's FZMAX, the top of the fit's range of validity).
  * - In a step: compute (passive stage) applies the forces of the current states at the
  *   contact point (mj_applyFT into qfrc_passive); advance (after MuJoCo's velocity update)
  *   integrates the states with the new velocities (semi-implicit, the |V_x| term implicit)
@@ -30,6 +31,10 @@
  *   the cut-out speed; compute subtracts R times the brake damper's torque of the step. The
  *   target scales with the surface's lambda_mu as the tyre's peak slip does (lambda_mu scales
  *   the peak force, not the slip stiffness), as a real ABS finds the peak on any surface.
+ * - Brake build-up: a brake's torque limit (its actuator's force range) rises linearly
+ *   from 0 over brake_build_up_s after its command turns positive (the hydraulic pressure's
+ *   build-up time) and falls to 0 when the command returns to 0; compute caps the brake's
+ *   torque of the step (after the ABS's release) at that share of the limit.
  * - Compliance steer: the front tyres' lateral force F_yf turns the road wheels against it
  *   by c_delta F_yf: a torque -c_delta kp F_yf on the steering hinge, kp its servo's stiffness.
  * - A non-finite force stops the run: mju_error naming the time and the wheel.
@@ -37,7 +42,7 @@
  * Plugin state per wheel (STRIDE numbers, tyres.py reads it): slip ratio, lateral slip
  * tan(alpha), normal load (N), longitudinal and lateral force (N, along the tyre's heading and
  * its left), in contact (0/1), the ABS's release of the brake torque (0-1), the surface's
- * friction scale under the tyre, then the contact geometry of the step (heading, left, point).
+ * friction scale under the tyre, the brake's built-up share of its torque limit (0-1), then the contact geometry of the step (heading, left, point).
  */
 
 #include <math.h>
@@ -54,11 +59,11 @@
 
 /* the parameters, by name (the MJCF config keys; tyres.py writes every one) */
 #define PARAMS(X) \
-  X(fz0_n) X(pcx1) X(pdx1) X(pdx2) X(pex1) X(pex2) X(pex3) X(pkx1) X(pkx2) X(pkx3) \
+  X(fz0_n) X(fzmax_n) X(pcx1) X(pdx1) X(pdx2) X(pex1) X(pex2) X(pex3) X(pkx1) X(pkx2) X(pkx3) \
   X(pcy1) X(pdy1) X(pdy2) X(pey1) X(pey2) X(pky1) X(pky2) \
   X(rbx1) X(rbx2) X(rcx1) X(rby1) X(rby2) X(rcy1) \
   X(sigma_x_m) X(sigma_y_m) X(v_low_mps) X(damping_x_ns_per_m) X(damping_y_ns_per_m) \
-  X(abs_slip_target) X(abs_gain_per_s) X(abs_speed_min_mps) X(compliance_steer_rad_per_n)
+  X(brake_build_up_s) X(abs_slip_target) X(abs_gain_per_s) X(abs_speed_min_mps) X(compliance_steer_rad_per_n)
 
 #define ENUM(name) P_##name,
 enum { PARAMS(ENUM) NPARAM };
@@ -71,7 +76,7 @@ static const char* const param_names[] = {PARAMS(NAME) "wheels", "brakes", "stee
 #define SURFACE_STRIDE 7
 
 /* state layout per wheel */
-enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_RELEASE, S_LAMBDA, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
+enum { S_KAPPA, S_SLIPY, S_FZ, S_FX, S_FY, S_CONTACT, S_RELEASE, S_LAMBDA, S_BUILD, S_EX, S_EY = S_EX + 3, S_POINT = S_EY + 3,
        STRIDE = S_POINT + 3 };
 
 typedef struct {
@@ -92,7 +97,10 @@ BISO_EXPORT int biso_tyres_state_stride(void) { return STRIDE; }
 
 /* Magic Formula forces (N) of one tyre at load fz (N), slip ratio kappa, lateral slip
  * slipy = tan(alpha), surface friction scale lam: fx along the heading (positive when the
- * wheel turns faster than it rolls), fy along the left (opposing the lateral slip velocity). */
+ * wheel turns faster than it rolls), fy along the left (opposing the lateral slip velocity).
+ * The load the formulas see is held at fzmax_n, the top of the tyre's range of validity
+ * (MF-Tyre's FZMAX: beyond it the fit extrapolates, and a contact's impact load of an
+ * unsettled placement, 1e6 N or more, would turn into a friction force as large). */
 BISO_EXPORT void biso_tyres_magic_formula(const double* p, double fz, double kappa, double slipy, double lam,
                                           double* fx, double* fy) {
   if (!(fz > 0.0)) {
@@ -100,6 +108,7 @@ BISO_EXPORT void biso_tyres_magic_formula(const double* p, double fz, double kap
     *fy = 0.0;
     return;
   }
+  fz = fmin(fz, p[P_fzmax_n]);
   const double fz0 = p[P_fz0_n];
   const double dfz = (fz - fz0) / fz0;
   const double alpha = atan(slipy);
@@ -359,7 +368,7 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
       fx -= fade * p[P_damping_x_ns_per_m] * v[1];
       fy -= fade * p[P_damping_y_ns_per_m] * v[2];
       /* never more than the friction allows */
-      const double limit = fmax(p[P_pdx1], p[P_pdy1]) * lam * s[S_FZ];
+      const double limit = fmax(p[P_pdx1], p[P_pdy1]) * lam * fmin(s[S_FZ], p[P_fzmax_n]);
       const double f = sqrt(fx * fx + fy * fy);
       if (f > limit) {
         fx *= limit / f;
@@ -376,12 +385,13 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
     for (int k = 0; k < 3; k++) force[k] = fx * ex[k] + fy * ey[k];
     mj_applyFT(m, d, force, torque, s + S_POINT, b, d->qfrc_passive);
   }
-  /* ABS: each wheel's modulator releases the share S_RELEASE of its brake's torque (the
+  /* brakes: the ABS's modulator releases the share S_RELEASE of each brake's torque (the
      damper actuator's torque of this step, computed as MuJoCo will: gain (kv) times the
-     joint velocity times the command, within the force range) */
+     joint velocity times the command, within the force range), and the build-up caps what
+     is left at the share S_BUILD of the force range */
   for (int w = 0; w < NWHEEL; w++) {
-    const double release = state[w * STRIDE + S_RELEASE];
-    if (!(release > 0.0)) continue;
+    const double release = state[w * STRIDE + S_RELEASE], build = state[w * STRIDE + S_BUILD];
+    if (!(release > 0.0) && !(build < 1.0)) continue;
     const int a = t->brake[w];
     const double gear = m->actuator_gear[6 * a];
     const double* g = m->actuator_gainprm + mjNGAIN * a;
@@ -392,7 +402,12 @@ static void compute(const mjModel* m, mjData* d, int instance, int capability_bi
     if (m->actuator_forcelimited[a]) {
       force = fmin(fmax(force, m->actuator_forcerange[2 * a]), m->actuator_forcerange[2 * a + 1]);
     }
-    d->qfrc_passive[t->spin_dof[w]] -= release * gear * force;
+    double applied = (1.0 - release) * force;
+    if (m->actuator_forcelimited[a]) {
+      const double cap = build * fmax(-m->actuator_forcerange[2 * a], m->actuator_forcerange[2 * a + 1]);
+      applied = fmin(fmax(applied, -cap), cap);
+    }
+    d->qfrc_passive[t->spin_dof[w]] += gear * (applied - force);
   }
   /* compliance steer: the front tyres' lateral force turns the road wheels against it by
      c_delta per newton, as a torque on the steering hinge that deflects its servo so */
@@ -417,6 +432,12 @@ static void advance(const mjModel* m, mjData* d, int instance) {
       fz += f[0];
     }
     s[S_FZ] = fz;
+    /* brake build-up: the share of the torque limit rises over brake_build_up_s while braking */
+    if (brake_command(m, d, t->brake[w]) > 0.0) {
+      s[S_BUILD] = p[P_brake_build_up_s] > 0.0 ? fmin(s[S_BUILD] + dt / p[P_brake_build_up_s], 1.0) : 1.0;
+    } else {
+      s[S_BUILD] = 0.0;
+    }
     if (s[S_CONTACT] == 0.0) continue;
     double v[3];
     slip_velocities(m, d, t->body[w], s, v);
