@@ -346,7 +346,7 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
                 _offset_update(c, st, mx, my, mz)
         o = st[S["mag_offset_b"]:S["mag_offset_b"] + 3]
         m_used = (mx - o[0], my - o[1], mz - o[2])
-        if c[C["inv_offset_test"]] != 0.0 and c[C["offset_on"]] != 0.0:
+        if c[C["inv_offset_test"]] != 0.0 and c[C["offset_on"]] != 0.0 and not v_ok:
             # the offset's norm test: variances of |m − o| and |m| over the last Θ_o of rotation
             a = min(1.0, math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * h * c[C["inv_offset_test"]])
             j = S["offset_norm_test"]

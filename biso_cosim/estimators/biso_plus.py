@@ -48,9 +48,9 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   innovation gate (a magnet is rejected there), learning only once the gyro bias is known;
   the offset prior keeps what level driving cannot observe (o_z against B_z) near 0; the
   learned offset is used only while it makes the field's norm steadier than the raw field's
-  (a norm test over the last Θ_o of rotation): the vector model also takes a field that
-  changes along the path or lags the gyro for an offset, which a calibrated sensor in a lab
-  does not have (BROAD);
+  (without a speed input: a norm test over the last Θ_o of rotation): the vector model also
+  takes a field that changes along the path or lags the gyro for an offset, which a
+  calibrated sensor in a lab does not have (BROAD);
 * **decoupled corrections**: tilt about horizontal world axes from the accelerometer only,
   heading about Up from the magnetometer only, so a magnetic disturbance cannot tilt the
   estimate and an acceleration cannot turn its heading;
@@ -252,8 +252,10 @@ class BisoPlusParams:
             "m = R_Ibᵀ B_I + o took from a field that is not uniform (a room's gradient along a translation) "
             "or not simultaneous with the gyro (a lagging field under fast rotation) need not, and then the "
             "raw field is used. Both variances are low-passed over the last Θ_o of rotation (a window in "
-            "angle: without rotation the norm cannot tell an offset, and the decision is held); 0 = o always "
-            "used",
+            "angle: without rotation the norm cannot tell an offset, and the decision is held). Without a "
+            "speed input only: a vehicle's field along the road is uniform at the scale of its motion and its "
+            "turns are slow, so the vector model holds, while level driving shows the norm only the "
+            "horizontal offset's projection, of the order of the noise; 0 = o always used",
         source="one turn (chosen, not fitted); measured on BROAD (docs/estimators.md)")
     declination_rad: float = param(0.0, symbol="D", unit="rad", doc="magnetic declination, east positive", source="")
     # -- speed input
@@ -1060,10 +1062,10 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                     st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
                     _offset_update(c, st, mx, my, mz)
                     ox, oy, oz = st[_S_OFF], st[_S_OFF + 1], st[_S_OFF + 2]
-            if inv_otest != 0.0 and offset_on:
-                # the offset's norm test: the variances of |m − o| and |m| about their means,
-                # low-passed over the last Θ_o of rotation (α = |ω| h/Θ_o), and o used only while
-                # it makes the norm steadier
+            if inv_otest != 0.0 and offset_on and not v_ok:
+                # the offset's norm test (without a speed input): the variances of |m − o| and |m|
+                # about their means, low-passed over the last Θ_o of rotation (α = |ω| h/Θ_o), and
+                # o used only while it makes the norm steadier
                 a_ot = min(1.0, math.sqrt(wx * wx + wy * wy + wz * wz) * h * inv_otest)
                 n0 = math.sqrt(mx * mx + my * my + mz * mz)
                 dmx, dmy, dmz = mx - ox, my - oy, mz - oz

@@ -594,8 +594,8 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                     ox = st[S(MAG_OFFSET_B)]; oy = st[S(MAG_OFFSET_B) + 1]; oz = st[S(MAG_OFFSET_B) + 2];
                 }
             }
-            if (inv_otest != 0.0 && offset_on) {
-                /* the offset's norm test: the variances of |m - o| and |m| about their means, low-passed
+            if (inv_otest != 0.0 && offset_on && !v_ok) {
+                /* the offset's norm test (without a speed input): the variances of |m - o| and |m| about their means, low-passed
                  * over the last Theta_o of rotation (alpha = |w| h / Theta_o); o used only while it makes
                  * the norm steadier */
                 double a_ot = py_min(1.0, sqrt(wx * wx + wy * wy + wz * wz) * h * inv_otest);
