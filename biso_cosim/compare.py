@@ -228,8 +228,15 @@ def run_method(name: str, d: Dataset) -> np.ndarray:
 
 
 def _stats(q: np.ndarray, d: Dataset) -> dict[str, dict[str, float]]:
+    """RMS and largest absolute error of each angle and of the total attitude error over the
+    samples of ``d.info["moving"]`` (a motion's rest before it is not scored, as BROAD scores
+    only the movement of its trials); over every sample where the dataset has no such mask
+    (routes)."""
     err = angle_errors_deg(q, d.q_true)
-    return {a: {"rms_deg": float(np.sqrt(np.mean(err[a] ** 2))), "max_abs_deg": float(np.max(np.abs(err[a])))}
+    moving = d.info.get("moving")
+    keep = np.ones(len(q), bool) if moving is None else np.asarray(moving, bool)
+    return {a: {"rms_deg": float(np.sqrt(np.mean(err[a][keep] ** 2))),
+                "max_abs_deg": float(np.max(np.abs(err[a][keep])))}
             for a in (*ANGLES, "total")}
 
 

@@ -345,7 +345,20 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
                 st[S["offset_count"]] = 0.0
                 _offset_update(c, st, mx, my, mz)
         o = st[S["mag_offset_b"]:S["mag_offset_b"] + 3]
-        mwx, mwy, mwz = _qrot(*lam, mx - o[0], my - o[1], mz - o[2])
+        m_used = (mx - o[0], my - o[1], mz - o[2])
+        if c[C["inv_offset_test"]] != 0.0 and c[C["offset_on"]] != 0.0 and not v_ok:
+            # the offset's norm test: variances of |m − o| and |m| over the last Θ_o of rotation
+            a = min(1.0, math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * h * c[C["inv_offset_test"]])
+            j = S["offset_norm_test"]
+            n1, n0 = math.sqrt(_norm2(m_used)), math.sqrt(_norm2((mx, my, mz)))
+            if st[j] == 0.0:
+                st[j], st[j + 2] = n1, n0
+            for k, n in ((j, n1), (j + 2, n0)):
+                st[k] += a * (n - st[k])
+                st[k + 1] += a * ((n - st[k]) ** 2 - st[k + 1])
+            if not st[j + 1] < st[j + 3]:  # the raw norm is as steady: no offset shows in it
+                m_used = (mx, my, mz)
+        mwx, mwy, mwz = _qrot(*lam, *m_used)
         mh = math.sqrt(mwx * mwx + mwy * mwy)
         norm = math.sqrt(mh * mh + mwz * mwz)
         tc = S["tilt_corr_start"]
@@ -476,6 +489,10 @@ def _tumble(n, seed, hard_iron=(0.0, 0.0, 0.0)):
 CASES = {
     "tumble, defaults": ({}, "tumble", 0, False),
     "tumble, hard iron learned": ({"mag_offset_bias_sigma_rad_s": 0.05}, "iron", 0, True),
+    "tumble, hard iron, short norm-test window": (
+        {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_test_angle_rad": 0.3}, "iron", 0, True),
+    "tumble, hard iron, no norm test": (
+        {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_test_angle_rad": 0.0}, "iron", 0, True),
     "tumble, speed with gaps, NaN samples, sensor flags, full scales": (
         {"gyro_range_rad_s": 3.0, "accel_range_mps2": 40.0, "declination_rad": 0.2,
          "speed_point_b_m": (-1.0, 0.2, 0.0), "mag_offset_bias_sigma_rad_s": 0.05},
@@ -541,6 +558,9 @@ def test_kernel_equals_the_plain_step_bit_for_bit(case):
     for bit in (1 << k for k in range(31)):
         assert not must_flag & bit or np.any(flags & bit), bit
     assert (st[S["offset_started"]] == 1.0) == offset_runs
+    # the offset's norm test ran wherever the offset is estimated and the test is on
+    runs_test = params.get("estimate_mag_offset", True) and params.get("mag_offset_test_angle_rad", 1.0) != 0.0
+    assert (st[S["offset_norm_test"] + 3] > 0.0) == runs_test
     assert kind != "moving_start" or st[S["heading_start_s"]] > 0.0  # the start in motion's path taken
 
 

@@ -229,7 +229,9 @@ _PARAM_SETS = {
                   {"accel_gate_free": 0.01, "mag_time_skew_s": 0.01, "mag_disturbance_gain": 0.0,
                    "tau_mag_disturbance_s": 0.0, "mag_heading_noise_ut": 4.0},
                   {"rear_slip_gradient_rad_per_g": 0.08, "speed_slip_accel_mps2": 2.0, "speed_slip_hold_s": 0.2,
-                   "speed_point_b_m": (-1.2, 0.0, 0.0)}],
+                   "speed_point_b_m": (-1.2, 0.0, 0.0)},
+                  {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_interval_s": 0.02,
+                   "mag_offset_test_angle_rad": 0.5}],
 }
 _GENERAL = {"biso": [{"pattern": 13}, {"pattern": 13, "k": 20.0, "k_p": 6.0, "latitude_rad": 0.8}]}
 

@@ -46,7 +46,11 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   I frame and the offset o, with R_Ib from the gyro strapdown alone (no feedback from the
   heading correction): a six-state Kalman filter with random walks, decimated, with its own
   innovation gate (a magnet is rejected there), learning only once the gyro bias is known;
-  the offset prior keeps what level driving cannot observe (o_z against B_z) near 0;
+  the offset prior keeps what level driving cannot observe (o_z against B_z) near 0; the
+  learned offset is used only while it makes the field's norm steadier than the raw field's
+  (without a speed input: a norm test over the last Θ_o of rotation): the vector model also
+  takes a field that changes along the path or lags the gyro for an offset, which a
+  calibrated sensor in a lab does not have (BROAD);
 * **decoupled corrections**: tilt about horizontal world axes from the accelerometer only,
   heading about Up from the magnetometer only, so a magnetic disturbance cannot tilt the
   estimate and an acceleration cannot turn its heading;
@@ -240,6 +244,19 @@ class BisoPlusParams:
         source="measured")
     mag_offset_interval_s: float = param(
         0.1, symbol="Δt_o", unit="s", doc="interval between updates of the offset estimator", source="cost")
+    mag_offset_test_angle_rad: float = param(
+        2.0 * math.pi, symbol="Θ_o", unit="rad",
+        doc="norm test of the learned offset o: o is used only while the field's norm with it, |m − o|, "
+            "varies less than the raw norm |m|. A real offset makes |m| change with the attitude (by the "
+            "field's direction in body axes · o) and leaves |m − o| steady; an offset the vector model "
+            "m = R_Ibᵀ B_I + o took from a field that is not uniform (a room's gradient along a translation) "
+            "or not simultaneous with the gyro (a lagging field under fast rotation) need not, and then the "
+            "raw field is used. Both variances are low-passed over the last Θ_o of rotation (a window in "
+            "angle: without rotation the norm cannot tell an offset, and the decision is held). Without a "
+            "speed input only: a vehicle's field along the road is uniform at the scale of its motion and its "
+            "turns are slow, so the vector model holds, while level driving shows the norm only the "
+            "horizontal offset's projection, of the order of the noise; 0 = o always used",
+        source="one turn (chosen, not fitted); measured on BROAD (docs/estimators.md)")
     declination_rad: float = param(0.0, symbol="D", unit="rad", doc="magnetic declination, east positive", source="")
     # -- speed input
     speed_point_b_m: tuple[float, float, float] = param(
@@ -286,13 +303,13 @@ STATE_LAYOUT = (
     ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2), ("accel_bw_i", 6), ("accel_bw_ready", 1),
     ("mag_disturbance", 1), ("heading_start_s", 1), ("tilt_corr_start", 2), ("speed_slip_s", 1),
     ("speed_held", 1), ("forward_accel_lp", 1), ("lateral_accel_lp", 1), ("lateral_speed_prev", 1),
-    ("lateral_dvdt", 1),
+    ("lateral_dvdt", 1), ("offset_norm_test", 4),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
  _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST, _S_HEAD_T, _S_TILT_CORR, _S_SLIP_T,
- _S_VHELD, _S_FXLP, _S_FYLP, _S_VYPREV, _S_DVYDT) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_VHELD, _S_FXLP, _S_FYLP, _S_VYPREV, _S_DVYDT, _S_OTEST) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -305,6 +322,7 @@ _COEF_LAYOUT = (
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
     ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
     ("bias_w_vertical_free", 1), ("slip_accel", 1), ("slip_hold", 1), ("rear_slip", 1),
+    ("inv_offset_test", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
@@ -312,7 +330,7 @@ _C = layout_offsets(_COEF_LAYOUT)
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
  _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
  _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF, _C_SLIP_A, _C_SLIP_HOLD,
- _C_REAR_SLIP) = (
+ _C_REAR_SLIP, _C_INV_OTEST) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -348,7 +366,8 @@ _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "
                  "rest_time_s", "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps",
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
                  "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
-                 "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g")
+                 "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g",
+                 "mag_offset_test_angle_rad")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
@@ -402,6 +421,7 @@ _V_SKEW = _V_INDEX["mag_time_skew_s"]
 _V_SLIP_A = _V_INDEX["speed_slip_accel_mps2"]
 _V_SLIP_HOLD = _V_INDEX["speed_slip_hold_s"]
 _V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_g"]
+_V_OTEST = _V_INDEX["mag_offset_test_angle_rad"]
 
 
 _alpha_jit = jit(inline="always")(_alpha)
@@ -487,6 +507,7 @@ def biso_plus_derive(v, c):
     c[_C_A_DIST] = _alpha_jit(h, v[_V_TAU_DIST])
     c[_C_TAU_M2] = v[_V_SKEW] ** two
     c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP] / G0
+    c[_C_INV_OTEST] = 0.0 if v[_V_OTEST] == 0.0 else 1.0 / v[_V_OTEST]
     return -1
 
 
@@ -557,6 +578,9 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     c[_C_TAU_M2] = v["mag_time_skew_s"] ** 2
     c[_C_SLIP_A], c[_C_SLIP_HOLD] = v["speed_slip_accel_mps2"], v["speed_slip_hold_s"]
     c[_C_REAR_SLIP] = v["rear_slip_gradient_rad_per_g"] / G0  # rad per m/s²
+    # the offset's norm test: 1/Θ_o (0: off, the offset always used)
+    theta = v["mag_offset_test_angle_rad"]
+    c[_C_INV_OTEST] = 0.0 if theta == 0.0 else 1.0 / theta
     return c
 
 
@@ -830,6 +854,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     rest_n, rest_v = c[_C_REST_N], c[_C_REST_V]
     g, inv_gate_g = c[_C_G], c[_C_INV_GATE_G]
     offset_on, off_bias2, off_n = c[_C_OFFSET] != 0.0, c[_C_OFF_BIAS2], c[_C_OFF_N]
+    inv_otest = c[_C_INV_OTEST]
     c_bnorm, c_dip, c_dipc, c_dips = c[_C_BNORM], c[_C_DIP], c[_C_DIP_C], c[_C_DIP_S]
     learn_norm, learn_dip = c_bnorm < 0.0, math.isnan(c_dip)
     btol, cos_dtol, rej_n = c[_C_BTOL], c[_C_COS_DTOL], c[_C_REJ_N]
@@ -1037,7 +1062,29 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                     st[_S_QI], st[_S_QI + 1], st[_S_QI + 2], st[_S_QI + 3] = qiw, qix, qiy, qiz
                     _offset_update(c, st, mx, my, mz)
                     ox, oy, oz = st[_S_OFF], st[_S_OFF + 1], st[_S_OFF + 2]
-            mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz)
+            if inv_otest != 0.0 and offset_on and not v_ok:
+                # the offset's norm test (without a speed input): the variances of |m − o| and |m|
+                # about their means, low-passed over the last Θ_o of rotation (α = |ω| h/Θ_o), and
+                # o used only while it makes the norm steadier
+                a_ot = min(1.0, math.sqrt(wx * wx + wy * wy + wz * wz) * h * inv_otest)
+                n0 = math.sqrt(mx * mx + my * my + mz * mz)
+                dmx, dmy, dmz = mx - ox, my - oy, mz - oz
+                n1 = math.sqrt(dmx * dmx + dmy * dmy + dmz * dmz)
+                j = _S_OTEST
+                if st[j] == 0.0:  # the first field: both means from it
+                    st[j], st[j + 2] = n1, n0
+                st[j] += a_ot * (n1 - st[j])
+                d1 = n1 - st[j]
+                st[j + 1] += a_ot * (d1 * d1 - st[j + 1])
+                st[j + 2] += a_ot * (n0 - st[j + 2])
+                d0 = n0 - st[j + 2]
+                st[j + 3] += a_ot * (d0 * d0 - st[j + 3])
+                if st[j + 1] < st[j + 3]:
+                    mwx, mwy, mwz = _qrot(lw, lx, ly, lz, dmx, dmy, dmz)
+                else:
+                    mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx, my, mz)
+            else:
+                mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz)
             mh = math.sqrt(mwx * mwx + mwy * mwy)
             norm = math.sqrt(mh * mh + mwz * mwz)
             if field_ok == 2.0 and tcx * tcx + tcy * tcy > dtol2:

@@ -111,6 +111,8 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     c[C(SLIP_ACCEL)] = p[P(SPEED_SLIP_ACCEL_MPS2)];
     c[C(SLIP_HOLD)] = p[P(SPEED_SLIP_HOLD_S)];
     c[C(REAR_SLIP)] = p[P(REAR_SLIP_GRADIENT_RAD_PER_G)] / BISO_EST_K_G0;  /* rad per m/s^2 */
+    /* the offset's norm test: 1/Theta_o (0: off, the offset always used) */
+    c[C(INV_OFFSET_TEST)] = p[P(MAG_OFFSET_TEST_ANGLE_RAD)] == 0.0 ? 0.0 : 1.0 / p[P(MAG_OFFSET_TEST_ANGLE_RAD)];
     /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
     if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
@@ -392,6 +394,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const double g = c[C(G)], inv_gate_g = c[C(INV_GATE_G)];
         const int offset_on = c[C(OFFSET_ON)] != 0.0;
         const double off_bias2 = c[C(OFFSET_BIAS2)], off_n = c[C(OFFSET_N)];
+        const double inv_otest = c[C(INV_OFFSET_TEST)];
         const double c_bnorm = c[C(B_NORM)], c_dip = c[C(DIP)], c_dipc = c[C(DIP_C)], c_dips = c[C(DIP_S)];
         const int learn_norm = c_bnorm < 0.0, learn_dip = isnan(c_dip);
         const double btol = c[C(B_TOL)], cos_dtol = c[C(COS_DIP_TOL)], rej_n = c[C(REJECT_MAX)];
@@ -591,7 +594,32 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                     ox = st[S(MAG_OFFSET_B)]; oy = st[S(MAG_OFFSET_B) + 1]; oz = st[S(MAG_OFFSET_B) + 2];
                 }
             }
-            mw = bq_rot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz);
+            if (inv_otest != 0.0 && offset_on && !v_ok) {
+                /* the offset's norm test (without a speed input): the variances of |m - o| and |m| about their means, low-passed
+                 * over the last Theta_o of rotation (alpha = |w| h / Theta_o); o used only while it makes
+                 * the norm steadier */
+                double a_ot = py_min(1.0, sqrt(wx * wx + wy * wy + wz * wz) * h * inv_otest);
+                double n0 = sqrt(mx * mx + my * my + mz * mz);
+                double dmx = mx - ox, dmy = my - oy, dmz = mz - oz;
+                double n1 = sqrt(dmx * dmx + dmy * dmy + dmz * dmz), d0, d1;
+                double *ot = st + S(OFFSET_NORM_TEST);
+                if (ot[0] == 0.0) {  /* the first field: both means from it */
+                    ot[0] = n1;
+                    ot[2] = n0;
+                }
+                ot[0] += a_ot * (n1 - ot[0]);
+                d1 = n1 - ot[0];
+                ot[1] += a_ot * (d1 * d1 - ot[1]);
+                ot[2] += a_ot * (n0 - ot[2]);
+                d0 = n0 - ot[2];
+                ot[3] += a_ot * (d0 * d0 - ot[3]);
+                if (ot[1] < ot[3])
+                    mw = bq_rot(lw, lx, ly, lz, dmx, dmy, dmz);
+                else
+                    mw = bq_rot(lw, lx, ly, lz, mx, my, mz);
+            } else {
+                mw = bq_rot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz);
+            }
             mh = sqrt(mw.x * mw.x + mw.y * mw.y);
             norm = sqrt(mh * mh + mw.z * mw.z);
             if (field_ok == 2.0 && tcx * tcx + tcy * tcy > dtol2) {

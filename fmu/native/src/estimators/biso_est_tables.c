@@ -356,6 +356,10 @@ static const biso_est_param params_biso_plus[] = {
      "interval between updates of the offset estimator",
      "cost",
      BISO_EST_REAL, 0, 1, 0x1.999999999999ap-4, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"mag_offset_test_angle_rad", "\316\230_o", "rad", "rad",
+     "norm test of the learned offset o: o is used only while the field's norm with it, |m \342\210\222 o|, varies less than the raw norm |m|. A real offset makes |m| change with the attitude (by the field's direction in body axes \302\267 o) and leaves |m \342\210\222 o| steady; an offset the vector model m = R_Ib\341\265\200 B_I + o took from a field that is not uniform (a room's gradient along a translation) or not simultaneous with the gyro (a lagging field under fast rotation) need not, and then the raw field is used. Both variances are low-passed over the last \316\230_o of rotation (a window in angle: without rotation the norm cannot tell an offset, and the decision is held). Without a speed input only: a vehicle's field along the road is uniform at the scale of its motion and its turns are slow, so the vector model holds, while level driving shows the norm only the horizontal offset's projection, of the order of the noise; 0 = o always used",
+     "one turn (chosen, not fitted); measured on BROAD (docs/estimators.md)",
+     BISO_EST_REAL, 0, 1, 0x1.921fb54442d18p+2, 0.0, HUGE_VAL, 0, NULL, 0},
     {"declination_rad", "D", "rad", "rad",
      "magnetic declination, east positive",
      "",
@@ -401,7 +405,7 @@ static const biso_est_param params_biso_plus[] = {
      "PS-MPU-9250A-01 \302\2473.2 (\302\2612\342\200\246\302\26116 g)",
      BISO_EST_REAL, 1, 1, NAN, 0.0, HUGE_VAL, 1, NULL, 0},
 };
-static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46};
+static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47};
 
 const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
     {"biso", "faithful BISO: Poisson equation with cross-linked positional correction (Aleshkin et al. 2024, reading D)",
@@ -418,5 +422,5 @@ const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
      params_dcm_pi, family_index_dcm_pi, 9, NULL, 0},
     {"biso_plus", "BISO family for vehicles: gyro-bias estimation, acceleration compensation from speed, gating, magnetic disturbance detection, unbiased cross-link",
      BISO_EST_FAMILY_BISO_PLUS, BISO_EST_INPUT_SPEED_MPS | BISO_EST_INPUT_IMU_FLAGS, 1,
-     params_biso_plus, family_index_biso_plus, 47, NULL, 0},
+     params_biso_plus, family_index_biso_plus, 48, NULL, 0},
 };
