@@ -109,8 +109,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     in which the car gains less than 1 m along the route in `stall_s` seconds is truncated
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    356 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004)
-    and completes every one of them (tested).
+    328.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
+    324.0 on the procedural routes of those seeds) and completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
