@@ -26,7 +26,7 @@ drove in training)."""
 ALGO_OPTIONS: dict[str, dict[str, Any]] = {
     "AttitudeEstimation": {"policy_kwargs": {"log_std_init": -2.0}},
     "GainTuning": {"gamma": 0.999},
-    "Driving": {"gamma": 0.995, "policy_kwargs": {"log_std_init": -1.0}},
+    "Driving": {"gamma": 0.995},
 }
 """Hyperparameters besides SB3's defaults: AttitudeEstimation's residual policy starts with
 exploration noise of standard deviation e^-2 = 0.14 instead of 1, as residual policies do
@@ -35,10 +35,8 @@ estimator its zero action is; GainTuning discounts with γ = 0.999 (a horizon of
 20 s) instead of 0.99 (2 s): the gains' effects (the gyro's drift under too little correction,
 the cross-link's bias estimate) play out over seconds to tens of seconds; Driving with
 γ = 0.995 (4 s, about 30 m of road at the pursuit driver's speed) instead of 0.99 (2 s,
-less than the distance a fast car needs to slow for a turn), and initial exploration noise
-e^-1 = 0.37 instead of 1: with 1, speed on the procedural routes' tight corners ends off the
-road under the noise, and PPO settled on creeping (docs/envs.md, "Results on the Magic Formula
-car"). ``VecNormalize`` scales the rewards with the same γ."""
+less than the distance a fast car needs to slow for a turn). ``VecNormalize``
+scales the rewards with the same γ."""
 
 
 def env_options(name: str) -> dict[str, Any]:
