@@ -23,7 +23,8 @@ time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip 
 torch==2.13.0`` first on this machine: the local CPU build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
-    python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table
+    python benchmarks/rl_baselines.py --envs Driving --timesteps 700000 --curve-rows 14 --speed-steps 0   # the docs' table
+    python benchmarks/rl_baselines.py --envs AttitudeEstimation GainTuning --timesteps 150000 --speed-steps 0
 """
 
 from __future__ import annotations
