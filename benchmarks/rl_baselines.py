@@ -3,7 +3,8 @@ budget, against a random policy, the scripted information baseline and (GainTuni
 
 For each environment and algorithm: the learning curve (mean return of the training
 episodes finished in each tenth of the budget, from SB3's Monitor), then the final mean
-return over the evaluation seeds (deterministic policy) next to
+return over the evaluation seeds (deterministic policy) in the training environment (and,
+for Driving, trained on procedural routes, on ``figure8`` as well) next to
 
 * random: uniform actions from the action space (seeded);
 * info baseline: AttitudeEstimation, the reference BISO in ``info`` (the return a policy
@@ -22,7 +23,8 @@ time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip 
 torch==2.13.0`` first on this machine: the local CPU build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
-    python benchmarks/rl_baselines.py --timesteps 500000 --algos ppo sac   # the docs' table
+    python benchmarks/rl_baselines.py --envs Driving --timesteps 700000 --curve-rows 14 --speed-steps 0   # the docs' table
+    python benchmarks/rl_baselines.py --envs AttitudeEstimation GainTuning --timesteps 150000 --speed-steps 0
 """
 
 from __future__ import annotations
@@ -68,7 +70,7 @@ def baselines(name, env, seeds):
         if env.unwrapped.action_type == "correction":
             zero = np.zeros(env.action_space.shape, dtype=np.float32)
             out["zero correction (gyro strapdown)"] = np.mean([episode_return(env, lambda o: zero, s)[0] for s in seeds])
-        absolute = gym.make(ENVS[name])  # (the same episodes, quaternion actions)
+        absolute = gym.make(ENVS[name], action_type="quaternion")  # (the same episodes, quaternion actions)
         am = AccelMagAttitude(absolute)
         out["accel+mag attitude (memoryless)"] = np.mean([episode_return(absolute, am, s, am.reset)[0]
                                                           for s in seeds])
@@ -138,6 +140,16 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
     return model, vec, curve, rate
 
 
+def evaluation_options(name):
+    """The environments a policy of ``name`` is evaluated in: {table suffix: arguments}. The
+    training environment (``biso_cosim.envs.training``); for Driving, trained on procedural
+    routes, also ``figure8``, a route it never drove in training."""
+    options = env_options(name)
+    if name != "Driving":
+        return {"": options}
+    return {f" ({options.get('route', 'figure8')})": options, " (figure8)": {**options, "route": "figure8"}}
+
+
 def evaluate(model, vec, env, seeds):
     """Mean return of the deterministic policy over the seeds, and the last info of each episode."""
     policy = lambda obs: model.predict(vec.normalize_obs(obs[None]), deterministic=True)[0][0]  # noqa: E731
@@ -176,14 +188,15 @@ def main():
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
     table = []
     for name in args.envs:
-        env = gym.make(ENVS[name], **env_options(name))
         print(f"== {name}: {args.timesteps} steps per algorithm, evaluation seeds {seeds[0]}..{seeds[-1]}", flush=True)
         if args.speed_steps:
             for n in (1, 2):
                 _, vec, _, rate = train(name, "ppo", args.speed_steps, args.seed, n_envs=n)
                 vec.close()
                 print(f"  PPO training steps/s with {n} environment(s): {rate:.0f}", flush=True)
-        rows = baselines(name, env, seeds)
+        evaluations = {f"{name}{suffix}": gym.make(ENVS[name], **options)
+                       for suffix, options in evaluation_options(name).items()}
+        results = {label: baselines(name, env, seeds) for label, env in evaluations.items()}
         for algo in args.algos:
             if args.load_dir:  # evaluate a saved model (a checkpoint of an earlier run) instead of training
                 import pathlib
@@ -191,13 +204,17 @@ def main():
                 from stable_baselines3 import PPO, SAC
                 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+                import torch
+
+                torch.set_num_threads(1)
                 source = pathlib.Path(args.load_dir)
                 model = (PPO if algo == "ppo" else SAC).load(source / f"{name}_{algo}.zip", device="cpu")
                 vec = VecNormalize.load(str(source / f"{name}_{algo}_vecnormalize.pkl"),
                                         DummyVecEnv([lambda: gym.make(ENVS[name], **env_options(name))]))
                 vec.training = False
                 label = f"{algo.upper()} ({source / f'{name}_{algo}.zip'}, {model.num_timesteps} steps)"
-                rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
+                for where, env in evaluations.items():
+                    results[where].update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
                 continue
             save = None
             if args.save_dir:
@@ -217,11 +234,13 @@ def main():
             for steps, mean, count in curve:
                 print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")
             label = f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"
-            rows.update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
-        for label, value in rows.items():
-            shown = value if isinstance(value, str) else f"{value:.1f}"
-            print(f"  {label:<48} {shown:>10}", flush=True)
-            table.append((name, label, shown))
+            for where, env in evaluations.items():
+                results[where].update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
+        for where, rows in results.items():
+            for label, value in rows.items():
+                shown = value if isinstance(value, str) else f"{value:.1f}"
+                print(f"  {where:<24} {label:<48} {shown:>10}", flush=True)
+                table.append((where, label, shown))
     print("\n| environment | policy | mean return |\n|---|---|---|")
     for name, label, shown in table:
         print(f"| {name} | {label.strip()} | {shown} |")

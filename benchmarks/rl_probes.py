@@ -13,11 +13,13 @@ action when noise is added to it (if it does not, a policy gradient has nothing 
   (``gain_time_constant_s``, default 1 s) and without it (0).
 * AttitudeEstimation, ``action_type="correction"``: constant actions (0: gyro dead reckoning;
   c > 0: a complementary filter pulling the fraction c · (1 − exp(−dt/τ)) of the innovation
-  each step) and Gaussian actions of standard deviation 1 around the means 0, -1 and -2, with
-  gains of 1 pulling all the way to the accelerometer+magnetometer attitude
-  (``correction_time_constant_s=0``) and with the default cap (τ = 1 s: 2 % a step).
+  each step) and Gaussian actions of standard deviation 1 around the means 0, -1 and -2 (and
+  of 0.14, the trained baselines' initial noise, around 0 and 0.5), with gains of 1 pulling
+  all the way to the accelerometer+magnetometer attitude (``correction_time_constant_s=0``),
+  with the default cap (τ = 1 s: 2 % a step) and with the trained baselines' (τ = 100 s).
 
-    python benchmarks/rl_probes.py              # seeds 1000 and 1001, about 3 minutes
+    python benchmarks/rl_probes.py              # seeds 1000 and 1001, about 6 minutes
+    python benchmarks/rl_probes.py --envs AttitudeEstimation --settings "cap 100" --seeds 1000 1001 1002 1003 1004
 """
 
 from __future__ import annotations
@@ -55,10 +57,12 @@ def probes(name):
                  "same + noise 0.57": lambda rng: gaussian(best, 0.57, rng),
                  "uniform random": lambda rng: (lambda obs: rng.uniform(-1.0, 1.0, 2).astype(np.float32))})
     return ({"cap 0 (gain 1 = memoryless)": {"action_type": "correction", "correction_time_constant_s": 0.0},
-             "cap 1 s": {"action_type": "correction"}},
+             "cap 1 s": {"action_type": "correction"},
+             "cap 100 s (training.py)": {"action_type": "correction", "correction_time_constant_s": 100.0}},
             {**{f"constant {c:g}": (lambda rng, c=c: (lambda obs: np.full(3, c, dtype=np.float32)))
-                for c in (0.0, 0.05, 0.25, 1.0)},
-             **{f"noise 1 around {m:g}": (lambda rng, m=m: gaussian([m] * 3, 1.0, rng)) for m in (0.0, -1.0, -2.0)}})
+                for c in (0.0, 0.005, 0.05, 0.25, 0.5, 1.0)},
+             **{f"noise 1 around {m:g}": (lambda rng, m=m: gaussian([m] * 3, 1.0, rng)) for m in (0.0, -1.0, -2.0)},
+             **{f"noise 0.14 around {m:g}": (lambda rng, m=m: gaussian([m] * 3, 0.135, rng)) for m in (0.0, 0.5)}})
 
 
 def main():
@@ -66,11 +70,15 @@ def main():
     parser.add_argument("--envs", nargs="+", default=["GainTuning", "AttitudeEstimation"],
                         choices=["GainTuning", "AttitudeEstimation"])
     parser.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001], help="episode seeds")
+    parser.add_argument("--settings", nargs="+", default=None, help="only the environment settings whose label "
+                                                                    "starts with one of these (e.g. 'cap 100')")
     args = parser.parse_args()
     for name in args.envs:
         settings, policies = probes(name)
         print(f"== {name}: return per seed {args.seeds}", flush=True)
         for setting, kwargs in settings.items():
+            if args.settings and not any(setting.startswith(prefix) for prefix in args.settings):
+                continue
             env = gym.make(f"biso_cosim/{name}-v0", **kwargs)
             for label, make in policies.items():
                 rng = np.random.default_rng(0)

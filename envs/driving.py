@@ -15,6 +15,7 @@ from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_ch
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _drive_action, _driving_view, _driving_work
 from biso_cosim.routes import Route
+from biso_cosim.routes.path import curvature_speed_limit
 from biso_cosim.vehicle.driver import DriverCommand
 
 __all__ = ["DrivingEnv"]
@@ -83,16 +84,21 @@ class DrivingEnv(CosimEnv, EzPickle):
     Every term is bounded by the step's progress or is a one-off at the end, so that no
     penalty accumulates while the car stands or crawls:
 
-    - *reward_progress:* `progress_weight` × Δs, the distance gained along the route in the
-      step (m; negative when driving back): about 0.14 a step at 7 m/s, and the route's
-      length over an episode that drives it (387 for `figure8`);
-    - *reward_cross_track:* −`progress_weight` × `cross_track_weight` × max(Δs, 0) ×
-      min(|e| / `max_cross_track_m`, 1), e the cross-track error: the fraction of the step's
-      forward progress lost for driving off the centre line, all of it (with the default
-      weight 1) at the edge of the road. It is zero when the car does not progress and never
-      larger than the progress term: the one-off penalties aside, a step earns w·Δs when Δs ≤ 0
-      and between 0 and w·Δs otherwise (w = `progress_weight`), so standing still earns
-      exactly 0, dawdling little, driving along the centre line the most;
+    - *reward_progress:* `progress_weight` × min(Δs, v_lim·dt), Δs the distance gained along
+      the route in the step (m; negative when driving back), credited up to the road's speed
+      limit v_lim at the car's position: about 0.14 a step at 7 m/s, and the route's length
+      over an episode that drives it within the limit (387 for `figure8`). The limit is
+      `speed_limit_mps`, lowered in turns to √(a/|κ|) (κ the route's curvature, a =
+      `speed_limit_accel_mps2`) and before them so that braking at a reaches the turn's limit
+      (`speed_limits_mps`); speed above it earns nothing, so the risk of a fast turn buys
+      nothing (None: no limit, every metre counts);
+    - *reward_cross_track:* −`progress_weight` × `cross_track_weight` × max(Δs', 0) ×
+      min(|e| / `max_cross_track_m`, 1), Δs' the credited progress, e the cross-track error:
+      the fraction of the step's forward progress lost for driving off the centre line, all of
+      it (with the default weight 1) at the edge of the road. It is zero when the car does not
+      progress and never larger than the progress term: the one-off penalties aside, a step
+      earns w·Δs' when Δs' ≤ 0 and between 0 and w·Δs' otherwise (w = `progress_weight`), so
+      standing still earns exactly 0, dawdling little, driving along the centre line the most;
     - *reward_rollover:* −`rollover_penalty` when the car tilts past `rollover_tilt_rad`;
     - *reward_off_route:* −`off_route_penalty` when |e| exceeds `max_cross_track_m`.
 
@@ -103,10 +109,11 @@ class DrivingEnv(CosimEnv, EzPickle):
     in which the car gains less than 1 m along the route in `stall_s` seconds is truncated
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    356 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004)
-    and completes every one of them (tested).
+    328.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
+    324.0 on the procedural routes of those seeds) and completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
+    `speed_limit_mps` (v_lim at the car's position),
     `cross_track_m`, `speed_mps`, `tilt_rad`, `attitude_error_rad` (estimator vs truth),
     `nav_pose` and `true_pose` (rear axle x, y in m and yaw in rad, ENU), `pose_error_m` and
     `heading_error_rad` (navigation pose vs truth), `rolled_over`, `off_route`, `finished`,
@@ -131,7 +138,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     {arguments}
 
     ## Version History
-    * v0: Initial version.
+    * v0: Initial version; the speed limit of the progress reward (`speed_limit_mps`,
+      `speed_limit_accel_mps2`) added (2026-12-07).
     """
 
     ARGUMENTS = {
@@ -147,6 +155,10 @@ class DrivingEnv(CosimEnv, EzPickle):
                               "the cross-track error), 0 to 1",
         "rollover_penalty": "penalty of a roll-over (ends the episode), in units of the progress term (m of road)",
         "off_route_penalty": "penalty of leaving the route (ends the episode), in units of the progress term (m of road)",
+        "speed_limit_mps": "speed up to which progress is credited, m/s (None: all progress); lowered in turns "
+                           "and before them by `speed_limit_accel_mps2`",
+        "speed_limit_accel_mps2": "lateral acceleration the speed limit allows in turns, and its deceleration "
+                                  "before them, m/s²",
         "stall_s": "the episode is truncated when the car gains less than 1 m along the route in this time, s "
                    "(None: never)",
         "max_cross_track_m": "cross-track error that counts as leaving the route, m",
@@ -161,6 +173,7 @@ class DrivingEnv(CosimEnv, EzPickle):
                  preview_points: int = 10, preview_spacing_m: float = 2.0, progress_weight: float = 1.0,
                  cross_track_weight: float = 1.0, rollover_penalty: float = 5.0, off_route_penalty: float = 5.0,
                  max_cross_track_m: float = 5.0, rollover_tilt_rad: float = math.radians(60.0),
+                 speed_limit_mps: float | None = 10.0, speed_limit_accel_mps2: float = 3.0,
                  stall_s: float | None = 10.0,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
@@ -186,6 +199,10 @@ class DrivingEnv(CosimEnv, EzPickle):
             "off_route": _check_number("off_route_penalty", off_route_penalty, low=0.0),
         }
         self.max_cross_track_m = _check_number("max_cross_track_m", max_cross_track_m, low=0.0, low_open=True)
+        self.speed_limit_mps = None if speed_limit_mps is None else _check_number(
+            "speed_limit_mps", speed_limit_mps, low=0.0, low_open=True)
+        self.speed_limit_accel_mps2 = _check_number("speed_limit_accel_mps2", speed_limit_accel_mps2, low=0.0,
+                                                    low_open=True)
         self.stall_s = None if stall_s is None else _check_number("stall_s", stall_s, low=0.0, low_open=True)
         self.rollover_tilt_rad = _check_number("rollover_tilt_rad", rollover_tilt_rad, low=0.0, high=math.pi,
                                                low_open=True)
@@ -210,6 +227,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         self._nav_index = 0  # the path sample nearest to the pose the route ahead is placed from
         self._stall_mark_m = 0.0  # progress along the route when the stall clock last restarted, m
         self._stall_steps = 0  # steps since then
+        self._speed_limits = np.full(1, np.inf)  # v_lim at each sample of the route's path (m/s), set at reset
 
     def _check_route(self, route: Route) -> None:
         if any(w.reverse for w in route.waypoints):
@@ -224,6 +242,7 @@ class DrivingEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
+        self._speed_limits = self.speed_limits_mps()
         vehicle = self._sim.vehicle
         x, y = self._rear_axle_xy()
         self._pose[:] = (x, y, vehicle.route.start_xy_yaw[2])
@@ -243,7 +262,10 @@ class DrivingEnv(CosimEnv, EzPickle):
         self._advance(CONTROLS_APPLIED)  # (the driver's progress and cross-track error: at the end of the step)
         info, observation = self._view()
         w = self.weights
-        gained_m = info["distance_m"] - before
+        path_s = self._sim.route.path.s_m
+        limit = float(self._speed_limits[max(int(np.searchsorted(path_s, info["distance_m"], side="right")) - 1, 0)])
+        info["speed_limit_mps"] = limit
+        gained_m = min(info["distance_m"] - before, limit * self.dt)  # (the progress credited)
         edge = min(abs(info["cross_track_m"]) / self.max_cross_track_m, 1.0)
         terms = {
             "reward_progress": w["progress"] * gained_m,
@@ -263,6 +285,21 @@ class DrivingEnv(CosimEnv, EzPickle):
         truncated = (self._truncated or info["stalled"]) and not terminated
         self._end_if(terminated, truncated)
         return observation, reward, terminated, truncated, info
+
+    def speed_limits_mps(self) -> np.ndarray:
+        """The speed limit v_lim of the progress reward at each sample of the route's path, m/s:
+        `speed_limit_mps`, at most √(a/|κ|) in turns (``curvature_speed_limit``), and lowered
+        before them so that braking at a = `speed_limit_accel_mps2` reaches each turn's limit
+        (v_i² ≤ v_{i+1}² + 2·a·Δs). All inf with ``speed_limit_mps=None``."""
+        path = self._sim.route.path
+        if self.speed_limit_mps is None:
+            return np.full(len(path), np.inf)
+        a = self.speed_limit_accel_mps2
+        v = np.minimum(curvature_speed_limit(path, a), self.speed_limit_mps)
+        ds = np.diff(path.s_m)
+        for i in range(len(v) - 2, -1, -1):  # (once per episode: a few ms)
+            v[i] = min(v[i], math.sqrt(v[i + 1] * v[i + 1] + 2.0 * a * ds[i]))
+        return v
 
     def _apply_action(self, action: Any) -> float:
         """Check the action (``_check_action``'s errors and clipping) and write the controls

@@ -442,8 +442,9 @@ def test_driving_the_route_earns_its_length():
 
 
 def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
-    """reward_cross_track = -max(Δs, 0) × min(|e| / max_cross_track_m, 1) for the default
-    weights: never larger than the step's progress, zero when the car does not progress."""
+    """reward_cross_track = -max(Δs', 0) × min(|e| / max_cross_track_m, 1) for the default
+    weights (Δs' the credited progress): never larger than the step's progress, zero when the
+    car does not progress."""
     env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), max_cross_track_m=3.0)
     _, info = env.reset(seed=0)
     before, seen = info["distance_m"], 0
@@ -451,14 +452,62 @@ def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
         _, reward, terminated, truncated, info = env.step(np.array([0.3, 0.08]))
         gained = info["distance_m"] - before
         before = info["distance_m"]
-        assert info["reward_progress"] == gained
-        expected = -max(gained, 0.0) * min(abs(info["cross_track_m"]) / 3.0, 1.0)
+        credited = min(gained, info["speed_limit_mps"] * env.unwrapped.dt)
+        assert info["reward_progress"] == credited
+        expected = -max(credited, 0.0) * min(abs(info["cross_track_m"]) / 3.0, 1.0)
         assert info["reward_cross_track"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
         assert abs(info["reward_cross_track"]) <= max(info["reward_progress"], 0.0)
         seen += abs(info["cross_track_m"]) > 1.5 and gained > 0.0
         if terminated or truncated:
             break
     assert terminated and info["off_route"] and seen > 10  # (far off centre for a while before the edge)
+
+
+def test_progress_is_credited_up_to_the_speed_limit():
+    """reward_progress = min(Δs, v_lim·dt): a car faster than the limit earns the limit's
+    progress and no more; without a limit every metre counts."""
+    for limit in (5.0, None):
+        env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), pose_source="truth",
+                       speed_limit_mps=limit)
+        obs, info = env.reset(seed=0)
+        dt = env.unwrapped.dt
+        before, capped = info["distance_m"], 0
+        while True:
+            obs, reward, terminated, truncated, info = env.step(pursue(env, obs, speed_mps=9.0))
+            gained = info["distance_m"] - before
+            before = info["distance_m"]
+            if limit is None:
+                assert info["speed_limit_mps"] == math.inf and info["reward_progress"] == gained
+            else:
+                assert info["speed_limit_mps"] <= limit
+                assert info["reward_progress"] == min(gained, info["speed_limit_mps"] * dt)
+                capped += gained > limit * dt
+            assert reward == sum(info[t] for t in env.unwrapped.REWARD_TERMS)
+            if terminated or truncated:
+                break
+        assert info["finished"]
+        if limit is not None:
+            assert capped > 2.0 / dt  # (driven at 9 m/s for most of 200 m: over the limit for seconds)
+
+
+def test_speed_limits_slow_for_turns_and_brake_before_them():
+    """v_lim(s_i) = min over the samples j ≥ i of √(v_j² + 2·a·(s_j − s_i)), v_j the smaller of
+    speed_limit_mps and √(a/|κ_j|): the backward pass against the definition, and the slowest
+    turn of figure8 (25 m radius) at √(a·25 m)."""
+    from biso_cosim.routes.path import curvature_speed_limit
+
+    a = 2.0
+    env = gym.make("biso_cosim/Driving-v0", route="figure8", speed_limit_mps=12.0, speed_limit_accel_mps2=a)
+    env.reset(seed=0)
+    core = env.unwrapped
+    path = core.route.path
+    limits = core.speed_limits_mps()
+    base = np.minimum(curvature_speed_limit(path, a), 12.0)
+    s = path.s_m
+    reference = np.array([np.min(np.sqrt(base[i:] ** 2 + 2.0 * a * (s[i:] - s[i]))) for i in range(len(s))])
+    np.testing.assert_allclose(limits, reference, rtol=1e-12)
+    assert limits.min() == pytest.approx(math.sqrt(a * 25.0), rel=0.02) and limits.max() == 12.0
+    assert np.all(limits[:-1] ** 2 <= limits[1:] ** 2 + 2.0 * a * np.diff(s) + 1e-9)
 
 
 def test_standing_still_earns_nothing_and_the_stalled_episode_is_truncated():
@@ -490,7 +539,8 @@ def test_a_car_that_drives_is_never_stalled():
 
 @pytest.mark.parametrize(("arguments", "message"), [
     ({"cross_track_weight": 1.5}, "cross_track_weight"), ({"cross_track_weight": -0.1}, "cross_track_weight"),
-    ({"stall_s": 0.0}, "stall_s"), ({"stall_s": -1.0}, "stall_s")])
+    ({"stall_s": 0.0}, "stall_s"), ({"stall_s": -1.0}, "stall_s"), ({"speed_limit_mps": 0.0}, "speed_limit_mps"),
+    ({"speed_limit_mps": float("inf")}, "speed_limit_mps"), ({"speed_limit_accel_mps2": -1.0}, "speed_limit_accel_mps2")])
 def test_bad_reward_settings_are_refused(arguments, message):
     with pytest.raises(ValueError, match=message):
         gym.make("biso_cosim/Driving-v0", **arguments)
