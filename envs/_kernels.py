@@ -14,7 +14,7 @@ from biso_cosim.estimators._kernels import MAG_PARALLEL_SIN, _accel_ok, _mag_ok
 from biso_cosim.estimators.reference import _ref_triad
 from biso_cosim.frames import _qexp_rotvec, _qlog_rotvec, _qmul, _qnormalize
 from biso_cosim.routes._kernels import LOCATE_AHEAD, LOCATE_BACK, _locate
-from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls
+from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_controls, _brake_command
 
 __all__ = ["_scale_observation", "_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
@@ -71,17 +71,27 @@ def _inside(a, low, high):
 
 
 @jit
-def _drive_action(a, low, high, max_steer_rad, ctrl, actuators, wheel_rates, drivetrain, driver_state):
+def _drive_action(a, low, high, max_steer_rad, brake_kv, max_brake_nm, ctrl, actuators, wheel_rates, drivetrain,
+                  driver_state):
     """Driving-v0's action (throttle, steering) into MuJoCo's ``ctrl`` when it is inside
     [low, high] (``_inside``): the controls of its DriverCommand, steer = steering ·
-    max_steer_rad, drive = max(throttle, 0), brake = max(−throttle, 0), by
-    ``_apply_controls`` (``VehicleSim.apply``'s: the drive through the drivetrain). Returns the driver's progress along the
-    route before the step (m), or NaN, with nothing written, when the action is not inside."""
+    max_steer_rad, drive = max(throttle, 0), and for a throttle below 0 the brake command
+    that asks that fraction of each wheel's largest brake torque ``max_brake_nm`` at the
+    wheels' mean spin rate (``_brake_command``, as the scripted driver asks a torque; the
+    brakes are dampers of gain ``brake_kv``, so the command itself is not a torque share), by
+    ``_apply_controls`` (``VehicleSim.apply``'s: the drive through the drivetrain). Returns
+    the driver's progress along the route before the step (m), or NaN, with nothing written,
+    when the action is not inside."""
     if not _inside(a, low, high):
         return math.nan
     throttle, steering = a[0], a[1]
-    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), max(-throttle, 0.0), wheel_rates,
-                    drivetrain)
+    brake = 0.0
+    if throttle < 0.0:
+        rate = 0.0
+        for j in range(wheel_rates.shape[0]):
+            rate += wheel_rates[j]
+        brake = min(_brake_command(-throttle * max_brake_nm, brake_kv, rate / wheel_rates.shape[0]), 1.0)
+    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), brake, wheel_rates, drivetrain)
     return driver_state[S_S]
 
 

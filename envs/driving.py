@@ -309,8 +309,9 @@ class DrivingEnv(CosimEnv, EzPickle):
         a = self._action_array(action)
         vehicle = self._sim.vehicle
         space = self.action_space
-        apply = (space.low, space.high, vehicle.parameters["max_steer_rad"], *vehicle.control_arrays,
-                 vehicle.driver.state.array)
+        car = vehicle.parameters
+        apply = (space.low, space.high, car["max_steer_rad"], car["brake_kv_nms_per_rad"],
+                 car["max_brake_torque_per_wheel_nm"], *vehicle.control_arrays, vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
             before = _drive_action(self._bounded_action(a), *apply)

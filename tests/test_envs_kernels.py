@@ -141,26 +141,33 @@ def test_period_kernels_are_the_window_and_each_environments_parts(k):
 
 def test_drive_action_writes_the_controls_of_its_driver_command():
     """Driving-v0's action in one kernel: the controls ``VehicleSim.apply`` (``apply_command``) writes for the
-    DriverCommand the action stands for, bit for bit (signed zeros too), and the driver's
+    DriverCommand the action stands for, bit for bit (signed zeros too): its brake the command
+    that asks the throttle's fraction of each wheel's largest brake torque at the wheels' mean
+    spin rate (the damper's kv·u·ω̄ = fraction · T_max, up to full braking); and the driver's
     progress before the step; an action outside the bounds or NaN writes nothing."""
     actuators = np.array([6, 0, 5, 1, 2, 3, 4], dtype=np.int64)  # steering, drive, resistance, four brakes
     low, high, max_steer = np.array([-1.0, -1.0]), np.array([1.0, 1.0]), 0.6
-    wheel_rates = np.array([20.0, 20.5, 21.0, 21.3])  # fl, fr, rl, rr, rad/s
+    kv, max_brake = 4000.0, 1500.0
     drivetrain = drivetrain_coefficients(DRIVETRAIN, mass_kg=1300.0, wheel_radius_m=0.316)
     state = DriverState()
     state.array[S_S] = 12.5
-    for throttle, steering in [(0.3, -0.2), (-0.7, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, -1.0), (-1.0, 0.5)]:
-        expected = np.full(7, 9.0)
-        command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=max(-throttle, 0.0))
-        apply_command(ControlArrays(expected, actuators, wheel_rates, drivetrain), command)
-        ctrl = np.full(7, 9.0)
-        assert _drive_action(np.array([throttle, steering]), low, high, max_steer, ctrl, actuators, wheel_rates,
-                             drivetrain, state.array) == 12.5
-        assert ctrl.tobytes() == expected.tobytes()
+    for wheel_rates in (np.array([20.0, 20.5, 21.0, 21.3]), np.array([0.1, 0.0, -0.1, 0.2])):  # fl, fr, rl, rr
+        mean_rate = float(np.mean(wheel_rates))
+        for throttle, steering in [(0.3, -0.2), (-0.7, 1.0), (0.0, 0.0), (-0.0, -0.0), (1.0, -1.0), (-1.0, 0.5)]:
+            brake = min(-throttle * max_brake / (kv * max(abs(mean_rate), 0.5)), 1.0) if throttle < 0.0 else 0.0
+            if throttle < 0.0 and abs(mean_rate) > 0.5:
+                assert kv * brake * mean_rate == pytest.approx(-throttle * max_brake, rel=1e-12)
+            expected = np.full(7, 9.0)
+            command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=brake)
+            apply_command(ControlArrays(expected, actuators, wheel_rates, drivetrain), command)
+            ctrl = np.full(7, 9.0)
+            assert _drive_action(np.array([throttle, steering]), low, high, max_steer, kv, max_brake, ctrl, actuators,
+                                 wheel_rates, drivetrain, state.array) == 12.5
+            assert ctrl.tobytes() == expected.tobytes()
     for action in ([1.5, 0.0], [0.0, -1.01], [0.0, np.nan], [-np.inf, 0.0]):
         ctrl = np.full(7, 9.0)
-        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, ctrl, actuators, wheel_rates,
-                                        drivetrain, state.array))
+        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, kv, max_brake, ctrl, actuators,
+                                        wheel_rates, drivetrain, state.array))
         assert (ctrl == 9.0).all()
 
 

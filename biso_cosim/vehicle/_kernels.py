@@ -219,6 +219,14 @@ def _drive_period(px, py, ps, pheading, v_free, direction, stop_s, stop_index, s
 
 
 @jit
+def _brake_command(per_wheel_nm, brake_kv, wheel_rate):
+    """The command u of each wheel's brake, a damper (torque = kv·u·ω, car.xml), that asks
+    ``per_wheel_nm`` at the wheels' mean spin rate ``wheel_rate`` (rad/s, taken as at least
+    0.5 so that a stopped car holds); not clamped: above 1 the actuator cannot give it."""
+    return per_wheel_nm / (brake_kv * max(abs(wheel_rate), 0.5))
+
+
+@jit
 def _apply_controls(ctrl, actuators, steer_rad, drive, brake, wheel_rates, drivetrain):
     """A command into MuJoCo's ``ctrl``; ``actuators``: the ctrl indices of steering, drive,
     the driving resistances, then the brakes (each wheel's brake takes the same command).
@@ -314,8 +322,7 @@ def _driver_command(px, py, ps, pheading, v_free, direction, stop_s, stop_index,
     else:
         drive = 0.0
         per_wheel = abs(torque) / 4.0
-        # the brake is a damper (torque = kv·u·ω): u for the wanted torque at this speed
-        brake = per_wheel / (p[P_BRAKE_KV] * max(abs(wheel_speed), 0.5))
+        brake = _brake_command(per_wheel, p[P_BRAKE_KV], wheel_speed)
         saturated = brake > 1.0 or per_wheel > p[P_MAX_BRAKE]
         brake = min(brake, 1.0)
     state[S_HOLD] = brake
