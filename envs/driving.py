@@ -52,7 +52,7 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     | Num | Action | Min | Max | Unit |
     |---|---|---|---|---|
-    | 0 | throttle: > 0 drive torque at the rear wheels (fraction of 2400 N·m at the axle), < 0 brakes (fraction of full braking on all four wheels) | -1 | 1 | - |
+    | 0 | throttle: > 0 drive torque at the rear wheels (fraction of 2400 N·m at the axle), < 0 brakes (fraction of each wheel's largest brake torque, all four wheels) | -1 | 1 | - |
     | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left | -1 | 1 | - |
 
     NaN/inf or a wrong shape raise `ValueError`; out-of-bounds values are clipped (or
@@ -109,8 +109,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     in which the car gains less than 1 m along the route in `stall_s` seconds is truncated
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    328.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
-    324.0 on the procedural routes of those seeds) and completes every one of them (tested).
+    343.0 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
+    356.4 on the procedural routes of those seeds) and completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
