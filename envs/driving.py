@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Any, Mapping
 
@@ -227,7 +228,10 @@ class DrivingEnv(CosimEnv, EzPickle):
         self._nav_index = 0  # the path sample nearest to the pose the route ahead is placed from
         self._stall_mark_m = 0.0  # progress along the route when the stall clock last restarted, m
         self._stall_steps = 0  # steps since then
-        self._speed_limits = np.full(1, np.inf)  # v_lim at each sample of the route's path (m/s), set at reset
+        # v_lim at each sample of the route's path (m/s) and the samples' distances along it (m), set
+        # at reset as lists: the step looks the limit up with bisect (a NumPy call costs µs there)
+        self._speed_limits: list[float] = [math.inf]
+        self._path_s: list[float] = [0.0]
 
     def _check_route(self, route: Route) -> None:
         if any(w.reverse for w in route.waypoints):
@@ -242,7 +246,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         info = self._begin_episode(seed, options)
-        self._speed_limits = self.speed_limits_mps()
+        self._speed_limits = self.speed_limits_mps().tolist()
+        self._path_s = self._sim.route.path.s_m.tolist()
         vehicle = self._sim.vehicle
         x, y = self._rear_axle_xy()
         self._pose[:] = (x, y, vehicle.route.start_xy_yaw[2])
@@ -262,8 +267,7 @@ class DrivingEnv(CosimEnv, EzPickle):
         self._advance(CONTROLS_APPLIED)  # (the driver's progress and cross-track error: at the end of the step)
         info, observation = self._view()
         w = self.weights
-        path_s = self._sim.route.path.s_m
-        limit = float(self._speed_limits[max(int(np.searchsorted(path_s, info["distance_m"], side="right")) - 1, 0)])
+        limit = self._speed_limits[max(bisect.bisect_right(self._path_s, info["distance_m"]) - 1, 0)]
         info["speed_limit_mps"] = limit
         gained_m = min(info["distance_m"] - before, limit * self.dt)  # (the progress credited)
         edge = min(abs(info["cross_track_m"]) / self.max_cross_track_m, 1.0)

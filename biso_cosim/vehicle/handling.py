@@ -231,8 +231,9 @@ def braking_distance(*, tyres: str = "magic_formula", start_kmh: float = 100.0, 
     for w in ("fl", "fr", "rl", "rr"):
         d.qvel[m.jnt_dofadr[m.joint(f"{w}_spin").id]] = v0 / sim.index.wheel_radius_m
     mujoco.mj_forward(m, d)
-    sim.apply(DriverCommand(steer_rad=0.0, drive=0.0, brake=0.0))  # rolling free: the brakes released,
-    sim.step(1)  # (their build-up with them) from the parked car's
+    # one step rolling free: the parked car's brakes released, their build-up with them
+    sim.apply(DriverCommand(steer_rad=0.0, drive=0.0, brake=0.0))
+    sim.step(1)
     start = d.sensordata[sim.index.rear_axle_pos][:2].copy()
     brake = DriverCommand(steer_rad=0.0, drive=0.0, brake=1.0)
     for _ in range(int(20.0 * sim.control_rate_hz)):

@@ -51,8 +51,11 @@ def _mj_step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
         raise PhysicsDiverged(f"the physics stopped at t = {d.time:.4f} s: {exc}", float(d.time)) from None
 
 
-def _check_reset(d: mujoco.MjData, t_s: float) -> None:
-    """PhysicsDiverged when the step begun at ``t_s`` made MuJoCo reset the data."""
+def _mj_step_checked(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """One ``_mj_step``, and PhysicsDiverged when MuJoCo reset the data in it (a warning of
+    ``_RESET_WARNINGS``; after a reset the clock reads 0, so the step's time is taken first)."""
+    t_s = d.time
+    _mj_step(m, d)
     for warning, quantity in _RESET_WARNINGS.items():
         if d.warning[warning].number:
             raise PhysicsDiverged(f"the physics became unstable at t = {t_s:.4f} s: MuJoCo found a non-finite or huge "
@@ -296,9 +299,7 @@ class VehicleSim:
         if self._settled is None:
             mujoco.mj_forward(m, d)
             for _ in range(int(round(_SETTLE_S * self.physics_rate_hz))):
-                t_s = d.time
-                _mj_step(m, d)
-                _check_reset(d, t_s)
+                _mj_step_checked(m, d)
             d.time = 0.0
             self._settled = (np.empty(mujoco.mj_stateSize(m, PHYSICS_STATE)), d.sensordata.copy())
             mujoco.mj_getState(m, d, self._settled[0], PHYSICS_STATE)
@@ -435,9 +436,7 @@ class VehicleSim:
         mujoco.mj_setState(m, d, self._start_state, PHYSICS_STATE)
         self._warnings[:] = 0
         for i in range(rows.shape[0]):
-            t_s = d.time
-            _mj_step(m, d)
-            _check_reset(d, t_s)
+            _mj_step_checked(m, d)
             rows[i] = d.sensordata
         self._warnings[:] = 0
         self._restart_history()

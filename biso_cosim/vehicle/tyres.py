@@ -177,8 +177,8 @@ TYRES = TyreParams()
 
 _CHASSIS_RANGES = {
     "brake_torque_nm": (1000.0, 20000.0), "brake_balance_front": (0.5, 0.9), "brake_build_up_s": (0.0, 1.0),
-    "abs_slip_target": (0.03, 0.4),
-    "abs_gain_per_s": (1.0, 1000.0), "abs_speed_min_mps": (0.1, 10.0), "compliance_steer_rad_per_n": (0.0, 3e-5),
+    "abs_slip_target": (0.03, 0.4), "abs_gain_per_s": (1.0, 1000.0), "abs_speed_min_mps": (0.1, 10.0),
+    "compliance_steer_rad_per_n": (0.0, 3e-5),
 }
 _PLUGIN_CHASSIS = ("brake_build_up_s", "abs_slip_target", "abs_gain_per_s", "abs_speed_min_mps", "compliance_steer_rad_per_n")
 """The ChassisParams the C plugin reads (the brakes' torque and balance are the model's actuators)."""
