@@ -42,7 +42,7 @@ G_BERLIN = 9.8128  # m/s², BROAD's site (its accelerometer reads 9.82–9.89 m/
 LAB_FIELD_TRIALS = ("01", "05", "07")  # undisturbed rotation trials: the lab's field, fitted with the offset
 MOTION_OF_TRIAL = {  # BROAD trial (number) → the motion of the comparison that stands for it
     "01": "tumble", "05": "tumble", "07": "fast_tumble", "11": "translation", "15": "translation",
-    "27": "vibration", "29": "near_magnet", "33": "magnet",
+    "21": "shake", "27": "vibration", "29": "near_magnet", "33": "magnet",
 }
 
 
@@ -123,6 +123,10 @@ def broad_statistics(folder: str) -> dict:
             grad, explained = field_gradient(r.fs_hz, r.gyro_b, r.accel_b, r.mag_b, r.q_ref, r.movement, lab)
             st["field_gradient_ut_per_m"] = np.round(grad, 3).tolist()
             st["field_gradient_explained"] = explained
+            # |m| − |B| over the last 2 s before the movement (trial 29: a magnet beside the resting sensor)
+            last = slice(max(0, start - int(2 * r.fs_hz)), start)
+            st["mag_norm_before_movement_ut"] = float(np.median(np.linalg.norm(r.mag_b[last], axis=1))
+                                                      - np.linalg.norm(lab))
         st["rest_s"] = start / r.fs_hz
         st["rest_gyro_bias_dps"] = [float(x) for x in np.degrees(np.mean(r.gyro_b[rest], axis=0))]
         st["rest_mag_noise_ut"] = [float(x) for x in np.std(r.mag_b[rest], axis=0)]

@@ -75,6 +75,13 @@ MOTION_SETUP["tumble"] = {"rest_s": 10.0, "hand_accel_mps2": 2.25}
 MOTION_SETUP["fast_tumble"] = {"rest_s": 10.0, "hand_accel_mps2": 4.63}
 MOTION_SETUP["translation"] = {"rest_s": 10.0, "hand_rate_dps": (57.0, 67.0, 123.0),
                                "field_gradient_ut_per_m": ((0.7, 0.8, -1.3), (0.8, 1.8, -0.7), (-1.3, -0.7, -2.5))}
+MOTION_SETUP["shake"] = {"rest_s": 10.0, "spin_dps": -249.0, "wobble_deg": (56.0, 20.0, 56.0),
+                         "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.566, "accel_hz": (1.0, 1.5, 2.3)}
+MOTION_SETUP["near_magnet"] = {"rest_s": 10.0, "distance_m": 0.5,
+                               "hand": {"spin_dps": -154.0, "wobble_deg": (56.0, 12.0, 56.0), "wobble_hz": (0.8, 1.2, 0.9),
+                                        "accel_g": 1.278, "accel_hz": (1.1, 1.7, 2.5)},
+                               "magnet_at_rest": (0.15, 3.0),
+                               "passes": ((0.55, 0.105, 0.8), (0.58, 0.105, 0.8), (0.85, 0.105, 0.8))}
 """Keyword arguments of the motions as the comparison runs them, as BROAD's trials were
 recorded (docs/estimators.md "Simulated against real"). ``rest_s``: seconds at rest before
 the motion (added to its duration): BROAD's trials start at rest (26–46 s in the ten of the
@@ -88,7 +95,19 @@ trial 07's for ``fast_tumble``. ``hand_rate_dps``: the hand's rotation while it 
 sensor fast, BROAD's fast translation trial 15 (RMS about x, y, z). ``field_gradient_ut_per_m``:
 the field of BROAD's lab changes with the position by about 4 µT/m (fitted on the translated
 trials 11, 15 and 27, where it explains 45–65 % of the field's residual; the mean made
-symmetric and traceless); only a motion that moves the sensor by decimetres feels it."""
+symmetric and traceless); only a motion that moves the sensor by decimetres feels it.
+``shake`` is BROAD's fast combined trial 21 (rotation and translation together): the sensor
+spun about its y axis at −249 °/s (the trial's mean rate) while the hand turns it ±56° in yaw
+and roll, ±20° in pitch at 0.8–1.2 Hz (|ω| median 388 °/s, RMS 232, 280, 175 °/s about x, y, z
+on the trial) and translates it with 10.9 m/s² RMS at 1.0–2.3 Hz (trial: 10.86 at a median
+1.53 Hz); the hand shaking of before (±5–10°, 100 °/s, 6.8 m/s² at 3.7 Hz) had none of it.
+``near_magnet`` is BROAD's stationary-magnet trial 29: the same kind of motion (spin −154 °/s,
+8.9 m/s² RMS at 1.1–2.5 Hz) 0.5 m from the magnet (about 1 µT of it), which lies beside the
+resting sensor for the last 3 s of the rest (|m| 25 µT up; trial 29: 28 µT) and which the
+sensor passes three times at 0.105 m (|m| 20 µT down, 0.8 s each; trial 29: brief passes
+with 20–34 µT), |m| more than 5 µT off on 1.5–1.7 % of the movement (trial 29: 1.5 %); the slow
+handling of before (12 °/s) 0.2–0.45 m from it felt tens of µT all the time
+(``motions.shake``, ``motions.near_magnet``; figures: ``python benchmarks/broad_motions.py``)."""
 
 
 MOTION_MAG_DELAY_S = 0.014

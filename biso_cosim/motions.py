@@ -208,6 +208,19 @@ def _warped_chain(t, warp, yaw, pitch, roll):
     return q, om * warp[1][:, None]
 
 
+def _warped_spin_chain(t, warp, yaw, pitch, roll, spin_rad_s: float):
+    """`_warped_chain` followed by a steady spin about body y at ``spin_rad_s``: ``q = R_z R_y
+    R_x R_y(spin·τ)`` (`rotation_chain`), the body rate scaled with τ' as there."""
+    if spin_rad_s == 0.0:
+        return _warped_chain(t, warp, yaw, pitch, roll)
+    x = t if warp is None else warp[0]
+    pairs = (yaw, pitch, roll, (lambda tt: spin_rad_s * tt, lambda tt: np.full_like(tt, spin_rad_s)))
+    angles = np.stack([a(x) for a, _ in pairs], axis=1)
+    rates = np.stack([r(x) for _, r in pairs], axis=1)
+    q, om = rotation_chain([_AXES["z"], _AXES["y"], _AXES["x"], _AXES["y"]], angles, rates)
+    return q, (om if warp is None else om * warp[1][:, None])
+
+
 def static(duration_s=10.0, fs_hz=200.0, *, seed=0, rpy=(0.1, -0.2, 0.7), field_w=EARTH_FIELD_W, g=G0):
     """At rest at roll, pitch, yaw ``rpy`` (rad)."""
     t = _time(duration_s, fs_hz)
@@ -273,22 +286,46 @@ def _swing(amp_rad: float, freq_rad_s: float, phase_rad: float, base_rad: float 
             lambda tt: rate_amp * np.cos(freq_rad_s * tt + phase_rad))
 
 
-def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, rest_s=0.0, field_w=EARTH_FIELD_W, g=G0):
-    """Hand shaking: attitude wobble of 5–10° at 1–3 Hz and translation of ~``accel_g`` g peak,
-    after ``rest_s`` at rest (`_rest_warp`) if given."""
+def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, rest_s=0.0, wobble_deg=(6.0, 8.0, 5.0),
+          wobble_hz=(1.3, 2.1, 2.9), accel_hz=(2.0, 3.7, 5.9), spin_dps=0.0, field_w=EARTH_FIELD_W, g=G0):
+    """Hand shaking: attitude wobble of ``wobble_deg`` (yaw, pitch, roll; default 5–10°) at
+    ``wobble_hz`` (1–3 Hz) and a translation along every axis at the three ``accel_hz``, each
+    of ``accel_g``/3 g amplitude (|a| RMS accel_g·g/√2), after ``rest_s`` at rest
+    (`_rest_warp`) if given; ``info["position_m"]`` the position about its centre.
+
+    ``spin_dps``: the hand also spins the sensor steadily about its y axis (`_warped_spin_chain`).
+    BROAD's fast combined trial 21 (fast rotations and translations together) does: its gyro's
+    mean over the movement is −249 °/s about y (−154 °/s on the stationary-magnet trial 29, the
+    same kind of motion), the rest of its rate at 0.8–1.2 Hz (median frequency per axis), its
+    kinematic acceleration 10.9 m/s² RMS with its power's median at 1.53 Hz; |ω| median
+    388 °/s, 99th percentile 670 °/s, RMS 232, 280, 175 °/s about x, y, z
+    (``recording_statistics``, ``benchmarks/broad_motions.py``). ``compare.MOTION_SETUP`` runs
+    ``shake`` with those figures."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
-    ph = rng.uniform(0, 2 * np.pi, size=3)
-    amp, frq = np.radians([6.0, 8.0, 5.0]), 2 * np.pi * np.array([1.3, 2.1, 2.9])
-
-    q, om = _warped_chain(t, warp, *(_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.8, 0.15, -0.1))))
-    freqs = [2.0, 3.7, 5.9]
-    # amplitude per frequency so that each contributes about a third of the peak
-    amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in freqs]
-    _, acc = _sines(rng, t, amp_pos, freqs, warp)
+    q, om, pos, acc = _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g)
     earth = np.asarray(field_w, float)
     return _assemble("shake", fs_hz, t, q, om, acc, np.tile(earth, (t.size, 1)), earth, g,
-                     {"accel_g": accel_g, "moving": t > rest_s})
+                     {"accel_g": accel_g, "moving": t > rest_s, "position_m": pos})
+
+
+def _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g):
+    """Attitude, body rate, position and acceleration of `shake` (its random phases from ``rng``)."""
+    wobble_deg, wobble_hz, accel_hz = (np.asarray(x, float) for x in (wobble_deg, wobble_hz, accel_hz))
+    if wobble_deg.shape != (3,) or wobble_hz.shape != (3,) or accel_hz.shape != (3,):
+        raise ValueError("wobble_deg, wobble_hz and accel_hz take three values each (yaw, pitch, roll; "
+                         f"three frequencies), got {wobble_deg.tolist()}, {wobble_hz.tolist()}, {accel_hz.tolist()}")
+    if not (np.all(wobble_hz > 0) and np.all(accel_hz > 0) and math.isfinite(spin_dps)):
+        raise ValueError(f"wobble_hz and accel_hz must be positive and spin_dps finite, got "
+                         f"{wobble_hz.tolist()}, {accel_hz.tolist()}, {spin_dps!r}")
+    ph = rng.uniform(0, 2 * np.pi, size=3)
+    amp, frq = np.radians(wobble_deg), 2 * np.pi * wobble_hz
+    swings = (_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.8, 0.15, -0.1)))
+    q, om = _warped_spin_chain(t, warp, *swings, math.radians(spin_dps))
+    # amplitude per frequency so that each contributes about a third of the peak
+    amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in accel_hz]
+    pos, acc = _sines(rng, t, amp_pos, list(accel_hz), warp)
+    return q, om, pos, acc
 
 
 def magnet(duration_s=30.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, closest_m=0.04, rest_s=0.0, field_w=EARTH_FIELD_W,
@@ -364,36 +401,116 @@ def translation(duration_s=60.0, fs_hz=200.0, *, seed=0, accel_g=2.0, rest_s=0.0
                      {"accel_g": accel_g, "moving": t > rest_s, "position_m": pos})
 
 
-def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distance_m=0.3, rest_s=0.0,
-                field_w=EARTH_FIELD_W, g=G0):
+def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distance_m=0.3, rest_s=0.0, hand=None,
+                magnet_at_rest=None, passes=(), field_w=EARTH_FIELD_W, g=G0):
     """The sensor handled near a magnet fixed in the room: slow turns (yaw ±35°, pitch and
     roll ±15°) and moves of ±0.15 m per axis (0.04–0.11 Hz) about a point ``distance_m``
     from a dipole of ``moment_am2``; the field at the sensor is the Earth's plus the
     dipole's at the sensor's position, so it changes with the position in norm and
     direction (a few µT at 0.45 m, tens at 0.2 m); after ``rest_s`` at rest (`_rest_warp`) if
-    given."""
+    given.
+
+    ``hand``: a dict of `shake`'s hand arguments (``accel_g``, ``wobble_deg``, ``wobble_hz``,
+    ``accel_hz``, ``spin_dps``): the sensor is handled as `shake` moves it instead of the
+    slow turns and moves, about the point ``distance_m`` from the magnet.
+    ``magnet_at_rest`` = (closest_m, seconds): the magnet lies ``closest_m`` from the resting
+    sensor for the last ``seconds`` of the rest and is gone (at ``distance_m``) 0.8 s
+    into the motion (raised-cosine approach and departure of 0.3 s; the magnet moves, not the
+    sensor: no acceleration). ``passes``: (fraction, closest_m, seconds) each: at that fraction
+    of the motion the hand takes the sensor to ``closest_m`` from the magnet and back, a sin⁴
+    bump lasting ``seconds`` (`_bump`; its acceleration added to the hand's; a pass that runs
+    past the motion's end is cut there).
+
+    BROAD's stationary-magnet trial 29 is the fast combined motion of trial 21 (``shake``'s
+    spin; here −154 °/s about y, |ω| median 331 °/s, 8.9 m/s² RMS at 1.67 Hz) far from the
+    magnet, whose field it meets three times: 28 µT on |m| for the last 3 s of the starting rest
+    (on until 0.8 s into the movement), and brief passes of 0.05–0.12 s with |m| 20–34 µT off
+    about 98–101 s and 133 s; |m| is more than 5 µT off the lab's |B| on 1.5 % of the
+    movement, and the field's residual against the reference (3.3 µT) is that of the
+    undisturbed fast trial 21 (3.6 µT): the magnet is not felt elsewhere
+    (``recording_statistics``, ``benchmarks/broad_motions.py``). ``compare.MOTION_SETUP`` runs
+    ``near_magnet`` so."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
-    ph = rng.uniform(0, 2 * np.pi, size=6)
-    yaw = _swing(0.6, 0.35, ph[0])
-    pitch = _swing(0.25, 0.55, ph[1])
-    roll = _swing(0.25, 0.75, ph[2])
-    q, om = _warped_chain(t, warp, yaw, pitch, roll)
-    w = 2 * np.pi * np.array([0.04, 0.07, 0.11])
-    x = t if warp is None else warp[0]
-    pos = 0.15 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
-    acc = -0.15 * w[None, :] ** 2 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
-    if warp is not None:
-        vel = 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:])
-        acc = acc * warp[1][:, None] ** 2 + vel * warp[2][:, None]
+    if hand is None:
+        ph = rng.uniform(0, 2 * np.pi, size=6)
+        yaw = _swing(0.6, 0.35, ph[0])
+        pitch = _swing(0.25, 0.55, ph[1])
+        roll = _swing(0.25, 0.75, ph[2])
+        q, om = _warped_chain(t, warp, yaw, pitch, roll)
+        w = 2 * np.pi * np.array([0.04, 0.07, 0.11])
+        x = t if warp is None else warp[0]
+        pos = 0.15 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
+        acc = -0.15 * w[None, :] ** 2 * np.sin(w[None, :] * x[:, None] + ph[None, 3:])
+        if warp is not None:
+            vel = 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:])
+            acc = acc * warp[1][:, None] ** 2 + vel * warp[2][:, None]
+    else:
+        known = {"accel_g", "wobble_deg", "wobble_hz", "accel_hz", "spin_dps"}
+        if not set(hand) <= known:
+            raise ValueError(f"hand takes {', '.join(sorted(known))}; got {', '.join(sorted(set(hand) - known))}")
+        args = {"accel_g": 1.0, "wobble_deg": (6.0, 8.0, 5.0), "wobble_hz": (1.3, 2.1, 2.9),
+                "accel_hz": (2.0, 3.7, 5.9), "spin_dps": 0.0} | dict(hand)
+        q, om, pos, acc = _hand_shaking(t, warp, rng, args["accel_g"], args["wobble_deg"], args["wobble_hz"],
+                                        args["accel_hz"], args["spin_dps"], g)
+        acc = acc.copy()
     direction = np.array([0.6, -0.5, 0.62])
     direction /= np.linalg.norm(direction)
+    axis = np.array([0.3, 0.8, -0.52]) / np.linalg.norm([0.3, 0.8, -0.52])
+    moment = moment_am2 * axis
     r = distance_m * direction[None, :] + pos  # sensor relative to the magnet
-    moment = moment_am2 * np.array([0.3, 0.8, -0.52]) / np.linalg.norm([0.3, 0.8, -0.52])
+    tm = t - rest_s  # time since the motion began
+    if magnet_at_rest is not None:
+        # the magnet moved to closest_m from the resting sensor on its own axis (the field adds
+        # to the Earth's: |m| up), the sensor not moving
+        closest, seconds = (float(x) for x in magnet_at_rest)
+        if not (0.0 < closest < distance_m and 0.6 <= seconds <= rest_s):
+            raise ValueError(f"magnet_at_rest (closest_m, seconds) needs 0 < closest_m < distance_m and "
+                             f"0.6 s <= seconds <= rest_s, got {magnet_at_rest!r}")
+        near, _ = _plateau(tm, -seconds, 0.3, seconds + 0.8 - 0.6)
+        r = r + near[:, None] * (closest * axis - r[0])[None, :]
+    sensor = pos.copy()  # the sensor's position (the passes included; not the magnet's move at rest)
+    side = np.cross(axis, [0.0, 0.0, 1.0])
+    side /= np.linalg.norm(side)  # across the magnet's axis: its field against the Earth's, |m| down
+    for k, item in enumerate(passes):
+        frac, closest, seconds = (float(x) for x in item)
+        t0 = frac * duration_s - 0.5 * seconds
+        if not (0.0 < closest < distance_m and seconds > 0.0 and 0.0 <= frac <= 1.0):
+            raise ValueError(f"passes[{k}] (fraction, closest_m, seconds) needs 0 <= fraction <= 1, "
+                             f"0 < closest_m < distance_m and seconds > 0, got {item!r}")
+        dip, ddip = _bump(tm, t0, seconds)
+        # the hand takes the sensor from its path to closest_m beside the magnet and back
+        centre = int(np.clip(np.searchsorted(t, rest_s + t0 + 0.5 * seconds), 0, t.size - 1))
+        step = closest * side - r[centre]
+        r = r + dip[:, None] * step[None, :]
+        sensor += dip[:, None] * step[None, :]
+        acc = acc + ddip[:, None] * step[None, :]
     earth = np.asarray(field_w, float)
     b = earth[None, :] + dipole_field(moment, r)
     return _assemble("near_magnet", fs_hz, t, q, om, acc, b, earth, g,
-                     {"distance_m": np.linalg.norm(r, axis=1), "moment_am2": moment_am2, "moving": t > rest_s})
+                     {"distance_m": np.linalg.norm(r, axis=1), "moment_am2": moment_am2, "moving": t > rest_s,
+                      "position_m": sensor})
+
+
+def _bump(t, t0, seconds):
+    """sin⁴(π (t − t0)/seconds) over [t0, t0 + seconds] (0 elsewhere: its acceleration continuous,
+    a hand's move) and its second derivative."""
+    u = np.clip((t - t0) / seconds, 0.0, 1.0)
+    s, c = np.sin(np.pi * u), np.cos(np.pi * u)
+    return s ** 4, (np.pi / seconds) ** 2 * (12.0 * s ** 2 * c ** 2 - 4.0 * s ** 4)
+
+
+def _plateau(t, t0, ramp, hold):
+    """A bump from 0 to 1 and back: a raised-cosine rise over ``ramp`` from ``t0``, 1 for
+    ``hold``, a raised-cosine fall over ``ramp``; returns it and its second derivative."""
+    u = np.clip((t - t0) / ramp, 0.0, 1.0)
+    v = np.clip((t - t0 - ramp - hold) / ramp, 0.0, 1.0)
+    up = (t > t0) & (t < t0 + ramp)
+    down = (t > t0 + ramp + hold) & (t < t0 + 2 * ramp + hold)
+    k = 0.5 * (np.pi / ramp) ** 2
+    value = 0.5 * (1.0 - np.cos(np.pi * u)) - 0.5 * (1.0 - np.cos(np.pi * v))
+    second = np.where(up, k * np.cos(np.pi * u), 0.0) - np.where(down, k * np.cos(np.pi * v), 0.0)
+    return value, second
 
 
 def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_rad=np.radians(0.0105),
@@ -513,7 +630,7 @@ def circle(duration_s=20.0, fs_hz=200.0, *, seed=0, speed_mps=10.0, radius_m=30.
 
 
 def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=None, field_w=None, g: float = G0,
-                         high_hz: float = 20.0) -> dict:
+                         high_hz: float = 20.0, disturbed_ut: float = 5.0) -> dict:
     """What a motion does to an IMU, measured alike on a real recording with a reference
     attitude (BROAD's: ``q_wb`` from optical capture, NaN rows skipped) and on a simulated one
     (the truth), over the ``moving`` samples (all if None):
@@ -529,7 +646,9 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     field through the sensor's axes), ``field_enu_ut`` that B; ``mag_residual_ut``: median
     |m − R_wbᵀ B − o|;
     ``mag_lag_ms``: τ of m ≈ h − τ (h × ω), h = R_wbᵀ B + o, by least squares: how late the
-    field is against the reference (with ω from the gyro).
+    field is against the reference (with ω from the gyro); ``rate_mean_dps``: the gyro's mean
+    per axis (a steady spin); ``mag_disturbed_frac``: the fraction of the samples whose |m| is
+    more than ``disturbed_ut`` off |B| (a magnet met on the way).
     """
     from scipy.signal import butter, sosfiltfilt, welch
 
@@ -565,6 +684,7 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     return {
         "rate_median_dps": float(np.median(rate)), "rate_p99_dps": float(np.percentile(rate, 99)),
         "rate_rms_dps": [float(x) for x in np.degrees(np.sqrt(np.mean(gyro[sel] ** 2, axis=0)))],
+        "rate_mean_dps": [float(x) for x in np.degrees(np.mean(gyro[sel], axis=0))],
         "accel_rms_mps2": float(np.sqrt(np.mean(np.sum(kin ** 2, axis=1)))),
         "accel_median_hz": float(f_hz[np.searchsorted(cum, 0.5 * cum[-1])]),
         "high_accel_rms_mps2": float(np.sqrt(np.mean(np.sum(high_acc ** 2, axis=1)))),
@@ -574,6 +694,7 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
         "mag_offset_ut": [float(x) for x in offset],
         "mag_residual_ut": float(np.median(np.linalg.norm(resid, axis=1))),
         "mag_lag_ms": float(1e3 * lag),
+        "mag_disturbed_frac": float(np.mean(np.abs(np.linalg.norm(m, axis=1) - np.linalg.norm(field)) > disturbed_ut)),
         "field_enu_ut": [float(x) for x in field],
     }
 

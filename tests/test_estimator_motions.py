@@ -9,10 +9,13 @@ from biso_cosim import motions as mo
 
 def _as_compared(name):
     """The motion's arguments as `biso-cosim compare` runs it (from rest, BROAD's set-up), the
-    rest shortened to 1 s."""
+    rest shortened to 1 s (or to the time the magnet lies beside the resting sensor)."""
     from biso_cosim.compare import MOTION_SETUP
 
-    return {**MOTION_SETUP.get(name, {}), "rest_s": 1.0} if name in MOTION_SETUP else {}
+    if name not in MOTION_SETUP:
+        return {}
+    setup = MOTION_SETUP[name]
+    return {**setup, "rest_s": max(1.0, setup.get("magnet_at_rest", (0.0, 0.0))[1])}
 
 
 @pytest.mark.parametrize("as_compared", [False, True], ids=["default", "as_compared"])
@@ -178,3 +181,46 @@ def test_the_acceleration_is_the_positions_second_derivative_through_the_start()
     p, h = m.info["position_m"], 1.0 / m.fs_hz
     second = (p[2:] - 2.0 * p[1:-1] + p[:-2]) / h ** 2
     assert np.max(np.abs(second - m.accel_w[1:-1])) < 1e-3 * np.max(np.abs(m.accel_w))
+
+
+def test_shake_spins_at_the_asked_rate():
+    """``spin_dps``: a steady turn about body y on top of the wobble; the wobble's angles
+    are periodic, so over whole periods of all of them the body rate's mean is the spin."""
+    m = mo.make_motion("shake", 10.0, 1000.0, seed=2, spin_dps=-249.0, wobble_hz=(0.5, 1.0, 2.0))
+    plain = mo.make_motion("shake", 10.0, 1000.0, seed=2, wobble_hz=(0.5, 1.0, 2.0))
+    np.testing.assert_allclose(np.degrees(m.omega_b.mean(axis=0)), [0.0, -249.0, 0.0], atol=12.0)
+    # the spin turns the wobble's attitude about its own y axis: R_y(spin t) appended
+    spin = fr.quat_from_rotvec(np.radians(-249.0) * m.t_s[:, None] * np.array([[0.0, 1.0, 0.0]]))
+    assert fr.quat_angle_between(m.q_wb, fr.quat_multiply(plain.q_wb, spin)).max() < 1e-9
+    np.testing.assert_array_equal(m.accel_w, plain.accel_w)
+    with pytest.raises(ValueError, match="three values"):
+        mo.make_motion("shake", 1.0, 100.0, wobble_deg=(5.0, 5.0))
+
+
+def test_near_magnet_passes_and_the_magnet_beside_the_resting_sensor():
+    """A pass takes the sensor to ``closest_m`` from the magnet (across its axis: the dipole's
+    field against the Earth's, |m| down) and back, its acceleration the second derivative of the
+    sensor's position; the magnet laid beside the resting sensor changes the field (on its axis:
+    |m| up) with no acceleration; far away the magnet adds about 1 µT (0.5 A·m² at 0.5 m)."""
+    hand = {"spin_dps": -154.0, "wobble_deg": (56.0, 12.0, 56.0), "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.278,
+            "accel_hz": (1.1, 1.7, 2.5)}
+    m = mo.make_motion("near_magnet", 20.0, 4000.0, seed=1, rest_s=4.0, distance_m=0.5, hand=hand,
+                       magnet_at_rest=(0.15, 3.0), passes=((0.5, 0.105, 0.6),))
+    t, d = m.t_s, m.info["distance_m"]
+    dn = np.linalg.norm(m.mag_w, axis=1) - np.linalg.norm(m.earth_field_w)
+    centre = np.argmin(np.abs(t - 14.0))
+    assert d[centre] == pytest.approx(0.105, abs=1e-9) and dn[centre] < -15.0
+    resting = (t > 1.3) & (t < 4.0)
+    np.testing.assert_allclose(d[resting], 0.15, atol=1e-9)
+    assert np.all(dn[resting] > 20.0) and np.all(m.accel_w[t <= 4.0] == 0.0)
+    far = (t > 6.0) & ((t < 13.6) | (t > 14.4))
+    assert np.all(d[far] > 0.3) and np.max(np.abs(dn[far])) < 5.0
+    p, h = m.info["position_m"], 1.0 / m.fs_hz
+    second = (p[2:] - 2.0 * p[1:-1] + p[:-2]) / h ** 2
+    assert np.max(np.abs(second - m.accel_w[1:-1])) < 1e-3 * np.max(np.abs(m.accel_w))
+    with pytest.raises(ValueError, match="passes"):
+        mo.make_motion("near_magnet", 10.0, 100.0, passes=((1.5, 0.1, 1.0),))
+    with pytest.raises(ValueError, match="magnet_at_rest"):
+        mo.make_motion("near_magnet", 10.0, 100.0, rest_s=1.0, magnet_at_rest=(0.15, 3.0))
+    with pytest.raises(ValueError, match="hand takes"):
+        mo.make_motion("near_magnet", 10.0, 100.0, hand={"spin": 1.0})
