@@ -76,10 +76,12 @@ MOTION_SETUP["fast_tumble"] = {"rest_s": 10.0, "hand_accel_mps2": 4.63}
 MOTION_SETUP["translation"] = {"rest_s": 10.0, "hand_rate_dps": (57.0, 67.0, 123.0),
                                "field_gradient_ut_per_m": ((0.7, 0.8, -1.3), (0.8, 1.8, -0.7), (-1.3, -0.7, -2.5))}
 MOTION_SETUP["shake"] = {"rest_s": 10.0, "spin_dps": -249.0, "wobble_deg": (56.0, 20.0, 56.0),
-                         "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.566, "accel_hz": (1.0, 1.5, 2.3)}
+                         "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.566, "accel_hz": (1.0, 1.5, 2.3),
+                         "base_deg": (189.0, 8.6, 0.0)}
 MOTION_SETUP["near_magnet"] = {"rest_s": 10.0, "distance_m": 0.5,
-                               "hand": {"spin_dps": -154.0, "wobble_deg": (56.0, 12.0, 56.0), "wobble_hz": (0.8, 1.2, 0.9),
-                                        "accel_g": 1.278, "accel_hz": (1.1, 1.7, 2.5)},
+                               "hand": {"spin_dps": -154.0, "wobble_deg": (56.0, 12.0, 56.0),
+                                        "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.278, "accel_hz": (1.1, 1.7, 2.5),
+                                        "base_deg": (193.0, 8.6, 20.0)},
                                "magnet_at_rest": (0.15, 3.0),
                                "passes": ((0.55, 0.105, 0.8), (0.58, 0.105, 0.8), (0.85, 0.105, 0.8))}
 """Keyword arguments of the motions as the comparison runs them, as BROAD's trials were
@@ -100,9 +102,18 @@ symmetric and traceless); only a motion that moves the sensor by decimetres feel
 spun about its y axis at −249 °/s (the trial's mean rate) while the hand turns it ±56° in yaw
 and roll, ±20° in pitch at 0.8–1.2 Hz (|ω| median 388 °/s, RMS 232, 280, 175 °/s about x, y, z
 on the trial) and translates it with 10.9 m/s² RMS at 1.0–2.3 Hz (trial: 10.86 at a median
-1.53 Hz); the hand shaking of before (±5–10°, 100 °/s, 6.8 m/s² at 3.7 Hz) had none of it.
+1.53 Hz), about a base attitude (``base_deg``) that keeps the spin axis near the world's north
+(the mean rate in ENU: trial 21 (−14, 138, 1) °/s, here (−27…−15, 144…148, −7…3) on seeds 0–2).
+That axis matters: the field reaches the estimator τ ≈ 10.7 ms after the gyro's rate
+(``MOTION_MAG_DELAY_S``), so under a steady spin ω about north it is off by τ ω × B, an eastward
+error τ ω B_up, a heading error of τ ω B_up/B_north (2.65 times the spin's angle τ ω in BROAD's
+lab; about east, none). With the spin axis 45° from north (the default base) VQF's heading RMS
+was 1.3–1.4° (seeds 0, 1), with it along north 2.4–3.6°, and 1.0–1.6° with it along north but
+no lag (``MOTION_MAG_DELAY_S`` = 0); trial 21: 3.7°. The hand shaking of before (±5–10°,
+100 °/s, 6.8 m/s² at 3.7 Hz) had none of it.
 ``near_magnet`` is BROAD's stationary-magnet trial 29: the same kind of motion (spin −154 °/s,
-8.9 m/s² RMS at 1.1–2.5 Hz) 0.5 m from the magnet (about 1 µT of it), which lies beside the
+8.9 m/s² RMS at 1.1–2.5 Hz; the mean rate in ENU (−11, 66, −38) °/s on the trial, here about
+(−14, 86, −40)) 0.5 m from the magnet (about 1 µT of it), which lies beside the
 resting sensor for the last 3 s of the rest (|m| 25 µT up; trial 29: 28 µT) and which the
 sensor passes three times at 0.105 m (|m| 20 µT down, 0.8 s each; trial 29: brief passes
 with 20–34 µT), |m| more than 5 µT off on 1.5–1.7 % of the movement (trial 29: 1.5 %); the slow

@@ -287,13 +287,16 @@ def _swing(amp_rad: float, freq_rad_s: float, phase_rad: float, base_rad: float 
 
 
 def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, rest_s=0.0, wobble_deg=(6.0, 8.0, 5.0),
-          wobble_hz=(1.3, 2.1, 2.9), accel_hz=(2.0, 3.7, 5.9), spin_dps=0.0, field_w=EARTH_FIELD_W, g=G0):
+          wobble_hz=(1.3, 2.1, 2.9), accel_hz=(2.0, 3.7, 5.9), spin_dps=0.0, base_deg=None, field_w=EARTH_FIELD_W,
+          g=G0):
     """Hand shaking: attitude wobble of ``wobble_deg`` (yaw, pitch, roll; default 5–10°) at
     ``wobble_hz`` (1–3 Hz) and a translation along every axis at the three ``accel_hz``, each
     of ``accel_g``/3 g amplitude (|a| RMS accel_g·g/√2), after ``rest_s`` at rest
     (`_rest_warp`) if given; ``info["position_m"]`` the position about its centre.
 
-    ``spin_dps``: the hand also spins the sensor steadily about its y axis (`_warped_spin_chain`).
+    ``base_deg``: the (yaw, pitch, roll) in degrees about which the sensor wobbles (default
+    45.8°, 8.6°, −5.7°). ``spin_dps``: the hand also spins the sensor steadily about its y axis
+    (`_warped_spin_chain`), so the spin's axis in the world follows the wobble about the base.
     BROAD's fast combined trial 21 (fast rotations and translations together) does: its gyro's
     mean over the movement is −249 °/s about y (−154 °/s on the stationary-magnet trial 29, the
     same kind of motion), the rest of its rate at 0.8–1.2 Hz (median frequency per axis), its
@@ -303,13 +306,16 @@ def shake(duration_s=20.0, fs_hz=200.0, *, seed=0, accel_g=1.0, rest_s=0.0, wobb
     ``shake`` with those figures."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
-    q, om, pos, acc = _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g)
+    q, om, pos, acc = _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g, base_deg)
     earth = np.asarray(field_w, float)
     return _assemble("shake", fs_hz, t, q, om, acc, np.tile(earth, (t.size, 1)), earth, g,
                      {"accel_g": accel_g, "moving": t > rest_s, "position_m": pos})
 
 
-def _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g):
+_SHAKE_BASE_RAD = (0.8, 0.15, -0.1)  # yaw, pitch, roll about which `shake` wobbles by default
+
+
+def _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_dps, g, base_deg=None):
     """Attitude, body rate, position and acceleration of `shake` (its random phases from ``rng``)."""
     wobble_deg, wobble_hz, accel_hz = (np.asarray(x, float) for x in (wobble_deg, wobble_hz, accel_hz))
     if wobble_deg.shape != (3,) or wobble_hz.shape != (3,) or accel_hz.shape != (3,):
@@ -320,7 +326,10 @@ def _hand_shaking(t, warp, rng, accel_g, wobble_deg, wobble_hz, accel_hz, spin_d
                          f"{wobble_hz.tolist()}, {accel_hz.tolist()}, {spin_dps!r}")
     ph = rng.uniform(0, 2 * np.pi, size=3)
     amp, frq = np.radians(wobble_deg), 2 * np.pi * wobble_hz
-    swings = (_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate((0.8, 0.15, -0.1)))
+    bases = _SHAKE_BASE_RAD if base_deg is None else tuple(math.radians(float(x)) for x in base_deg)
+    if len(bases) != 3:
+        raise ValueError(f"base_deg takes three angles (yaw, pitch, roll), got {base_deg!r}")
+    swings = (_swing(amp[j], frq[j], ph[j], base) for j, base in enumerate(bases))
     q, om = _warped_spin_chain(t, warp, *swings, math.radians(spin_dps))
     # amplitude per frequency so that each contributes about a third of the peak
     amp_pos = [accel_g * g / 3.0 / (2 * np.pi * f) ** 2 for f in accel_hz]
@@ -446,13 +455,13 @@ def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distanc
             vel = 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:])
             acc = acc * warp[1][:, None] ** 2 + vel * warp[2][:, None]
     else:
-        known = {"accel_g", "wobble_deg", "wobble_hz", "accel_hz", "spin_dps"}
+        known = {"accel_g", "wobble_deg", "wobble_hz", "accel_hz", "spin_dps", "base_deg"}
         if not set(hand) <= known:
             raise ValueError(f"hand takes {', '.join(sorted(known))}; got {', '.join(sorted(set(hand) - known))}")
         args = {"accel_g": 1.0, "wobble_deg": (6.0, 8.0, 5.0), "wobble_hz": (1.3, 2.1, 2.9),
-                "accel_hz": (2.0, 3.7, 5.9), "spin_dps": 0.0} | dict(hand)
+                "accel_hz": (2.0, 3.7, 5.9), "spin_dps": 0.0, "base_deg": None} | dict(hand)
         q, om, pos, acc = _hand_shaking(t, warp, rng, args["accel_g"], args["wobble_deg"], args["wobble_hz"],
-                                        args["accel_hz"], args["spin_dps"], g)
+                                        args["accel_hz"], args["spin_dps"], g, args["base_deg"])
         acc = acc.copy()
     direction = np.array([0.6, -0.5, 0.62])
     direction /= np.linalg.norm(direction)
@@ -647,7 +656,8 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     |m − R_wbᵀ B − o|;
     ``mag_lag_ms``: τ of m ≈ h − τ (h × ω), h = R_wbᵀ B + o, by least squares: how late the
     field is against the reference (with ω from the gyro); ``rate_mean_dps``: the gyro's mean
-    per axis (a steady spin); ``mag_disturbed_frac``: the fraction of the samples whose |m| is
+    per axis (a steady spin), ``rate_mean_enu_dps`` the mean of the rate turned to ENU (the spin's
+    axis in the world); ``mag_disturbed_frac``: the fraction of the samples whose |m| is
     more than ``disturbed_ut`` off |B| (a magnet met on the way).
     """
     from scipy.signal import butter, sosfiltfilt, welch
@@ -685,6 +695,7 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
         "rate_median_dps": float(np.median(rate)), "rate_p99_dps": float(np.percentile(rate, 99)),
         "rate_rms_dps": [float(x) for x in np.degrees(np.sqrt(np.mean(gyro[sel] ** 2, axis=0)))],
         "rate_mean_dps": [float(x) for x in np.degrees(np.mean(gyro[sel], axis=0))],
+        "rate_mean_enu_dps": [float(x) for x in np.degrees(np.mean(quat_rotate(qs, gyro[sel]), axis=0))],
         "accel_rms_mps2": float(np.sqrt(np.mean(np.sum(kin ** 2, axis=1)))),
         "accel_median_hz": float(f_hz[np.searchsorted(cum, 0.5 * cum[-1])]),
         "high_accel_rms_mps2": float(np.sqrt(np.mean(np.sum(high_acc ** 2, axis=1)))),

@@ -180,6 +180,14 @@ def test_vibration_shakes_the_sensor_and_carries_the_phone_as_broads_trial_27(si
         assert np.all(np.abs(np.subtract(st["mag_offset_ut"], mo.PHONE_FIELD_B_UT)) < 1.0 + 0.1)
 
 
+def _lag_heading_drive(rate_enu_dps, field_enu_ut) -> float:
+    """A field τ late under a steady mean rate ω̄ (ENU) is off by τ ω̄ × B: its east part over the
+    horizontal field is the heading error per second of lag, in °/s (a spin about north: ω B_up/B_h;
+    about east: none)."""
+    b = np.asarray(field_enu_ut, float)
+    return float(np.cross(rate_enu_dps, b)[0] / np.hypot(b[0], b[1]))
+
+
 def _rate_rms_norm(st) -> float:
     return float(np.sqrt(np.sum(np.square(st["rate_rms_dps"]))))
 
@@ -187,8 +195,10 @@ def _rate_rms_norm(st) -> float:
 def test_shake_spins_and_translates_the_sensor_as_broads_fast_combined_trial(simulated):
     """Trial 21 (fast rotation and translation together): a steady spin about the sensor's y axis
     (its gyro's mean −249 °/s), |ω| median 388 °/s, the rate's RMS over the axes, 10.9 m/s² RMS of
-    hand acceleration at 1.5 Hz, and the field's residual of a fast rotation (the lag); the hand
-    shaking of before (±5–10°: 100 °/s, 6.8 m/s² at 3.7 Hz) is outside every one of these."""
+    hand acceleration at 1.5 Hz, and the field's residual of a fast rotation (the lag); the spin's
+    axis in the world (the mean rate in ENU, (−14, 138, 1) °/s: near north, where the field's
+    lag turns into heading error, within 15 %); the hand shaking of before (±5–10°: 100 °/s,
+    6.8 m/s² at 3.7 Hz, no spin) is outside every one of these."""
     real = _trial("21")
     for s in SEEDS:
         st = simulated["shake", s]
@@ -199,13 +209,20 @@ def test_shake_spins_and_translates_the_sensor_as_broads_fast_combined_trial(sim
         assert abs(st["accel_median_hz"] - real["accel_median_hz"]) < 0.3
         assert st["mag_residual_ut"] == pytest.approx(real["mag_residual_ut"], rel=0.3)
         assert st["mag_disturbed_frac"] == 0.0 == real["mag_disturbed_frac"]
+        # the spin's axis in the world near north, where the field's lag becomes heading error
+        spin_w, real_w = np.asarray(st["rate_mean_enu_dps"]), np.asarray(real["rate_mean_enu_dps"])
+        assert np.linalg.norm(spin_w - real_w) < 0.15 * np.linalg.norm(real_w)
+        assert _lag_heading_drive(spin_w, st["field_enu_ut"]) == pytest.approx(
+            _lag_heading_drive(real_w, LAB_FIELD), rel=0.15)
 
 
 def test_near_magnet_meets_the_magnet_as_broads_stationary_magnet_trial(simulated):
     """Trial 29: the fast combined motion of trial 21 (spin −153 °/s about y, |ω| median 331 °/s,
     8.9 m/s² RMS) far from the magnet, which it meets briefly: |m| more than 5 µT off |B| on
     1.5 % of the movement (here 1–2 %), its norm's spread 2.7 µT, and 28 µT on |m| while the
-    magnet lay beside the resting sensor just before the movement (here 25 µT). The slow
+    magnet lay beside the resting sensor just before the movement (here 25 µT); the mean rate in
+    ENU (−11, 66, −38) °/s within 30 % (here about (−14, 86, −40): the wobble of the spin's axis
+    is smaller than the trial's). The slow
     handling 0.2–0.45 m from the magnet of before: 12 °/s and tens of µT all along."""
     real = _trial("29")
     assert real["mag_norm_before_movement_ut"] > 20.0
@@ -218,3 +235,5 @@ def test_near_magnet_meets_the_magnet_as_broads_stationary_magnet_trial(simulate
         assert 0.01 < st["mag_disturbed_frac"] < 0.02 and 0.01 < real["mag_disturbed_frac"] < 0.02
         assert st["mag_norm_std_ut"] == pytest.approx(real["mag_norm_std_ut"], rel=0.25)
         assert st["mag_norm_before_movement_ut"] == pytest.approx(real["mag_norm_before_movement_ut"], abs=5.0)
+        spin_w, real_w = np.asarray(st["rate_mean_enu_dps"]), np.asarray(real["rate_mean_enu_dps"])
+        assert np.linalg.norm(spin_w - real_w) < 0.3 * np.linalg.norm(real_w)
