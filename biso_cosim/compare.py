@@ -78,6 +78,9 @@ MOTION_SETUP["translation"] = {"rest_s": 10.0, "hand_rate_dps": (57.0, 67.0, 123
 MOTION_SETUP["shake"] = {"rest_s": 10.0, "spin_dps": -249.0, "wobble_deg": (56.0, 20.0, 56.0),
                          "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.566, "accel_hz": (1.0, 1.5, 2.3),
                          "base_deg": (189.0, 8.6, 0.0)}
+MOTION_SETUP["vibration"] = {"rest_s": 10.0, "vib_span": (0.19, 1.0),
+                             "hand": {"wobble_deg": (4.3, 2.6, 1.85), "wobble_hz": (1.2, 2.0, 2.8), "accel_g": 0.333,
+                                      "accel_hz": (0.45, 0.7, 1.1)}}
 MOTION_SETUP["near_magnet"] = {"rest_s": 10.0, "distance_m": 0.5,
                                "hand": {"spin_dps": -154.0, "wobble_deg": (56.0, 12.0, 56.0),
                                         "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.278, "accel_hz": (1.1, 1.7, 2.5),
@@ -118,7 +121,13 @@ resting sensor for the last 3 s of the rest (|m| 25 µT up; trial 29: 28 µT) an
 sensor passes three times at 0.105 m (|m| 20 µT down, 0.8 s each; trial 29: brief passes
 with 20–34 µT), |m| more than 5 µT off on 1.5–1.7 % of the movement (trial 29: 1.5 %); the slow
 handling of before (12 °/s) 0.2–0.45 m from it felt tens of µT all the time
-(``motions.shake``, ``motions.near_magnet``; figures: ``python benchmarks/broad_motions.py``)."""
+``vibration`` is BROAD's phone-vibration trial 27 as a whole: the phone vibrates from 19 % of
+the movement to its end (trial 27: from 22 s into its 117 s; the middle third before), while
+the hand turns the sensor at 23 °/s RMS per axis around 2 Hz and moves it with 2.3 m/s² RMS
+at 0.45–1.1 Hz below 20 Hz (trial 27: 23, 23, 24 °/s, median frequency 2.0 Hz; 2.3 m/s² at a
+median 0.70 Hz; before: slow turns of 11 °/s median and no translation)
+(``motions.shake``, ``motions.near_magnet``, ``motions.vibration``; figures: ``python
+benchmarks/broad_motions.py``)."""
 
 
 MOTION_MAG_DELAY_S = 0.014

@@ -455,14 +455,7 @@ def near_magnet(duration_s=60.0, fs_hz=200.0, *, seed=0, moment_am2=0.5, distanc
             vel = 0.15 * w[None, :] * np.cos(w[None, :] * x[:, None] + ph[None, 3:])
             acc = acc * warp[1][:, None] ** 2 + vel * warp[2][:, None]
     else:
-        known = {"accel_g", "wobble_deg", "wobble_hz", "accel_hz", "spin_dps", "base_deg"}
-        if not set(hand) <= known:
-            raise ValueError(f"hand takes {', '.join(sorted(known))}; got {', '.join(sorted(set(hand) - known))}")
-        args = {"accel_g": 1.0, "wobble_deg": (6.0, 8.0, 5.0), "wobble_hz": (1.3, 2.1, 2.9),
-                "accel_hz": (2.0, 3.7, 5.9), "spin_dps": 0.0, "base_deg": None} | dict(hand)
-        q, om, pos, acc = _hand_shaking(t, warp, rng, args["accel_g"], args["wobble_deg"], args["wobble_hz"],
-                                        args["accel_hz"], args["spin_dps"], g, args["base_deg"])
-        acc = acc.copy()
+        q, om, pos, acc = _hand(t, warp, rng, hand, g)
     direction = np.array([0.6, -0.5, 0.62])
     direction /= np.linalg.norm(direction)
     axis = np.array([0.3, 0.8, -0.52]) / np.linalg.norm([0.3, 0.8, -0.52])
@@ -509,6 +502,17 @@ def _bump(t, t0, seconds):
     return s ** 4, (np.pi / seconds) ** 2 * (12.0 * s ** 2 * c ** 2 - 4.0 * s ** 4)
 
 
+def _hand(t, warp, rng, hand: dict, g):
+    """`_hand_shaking` with `shake`'s defaults for the arguments ``hand`` leaves out."""
+    known = {"accel_g", "wobble_deg", "wobble_hz", "accel_hz", "spin_dps", "base_deg"}
+    if not set(hand) <= known:
+        raise ValueError(f"hand takes {', '.join(sorted(known))}; got {', '.join(sorted(set(hand) - known))}")
+    args = {"accel_g": 1.0, "wobble_deg": (6.0, 8.0, 5.0), "wobble_hz": (1.3, 2.1, 2.9),
+            "accel_hz": (2.0, 3.7, 5.9), "spin_dps": 0.0, "base_deg": None} | dict(hand)
+    return _hand_shaking(t, warp, rng, args["accel_g"], args["wobble_deg"], args["wobble_hz"], args["accel_hz"],
+                         args["spin_dps"], g, args["base_deg"])
+
+
 def _plateau(t, t0, ramp, hold):
     """A bump from 0 to 1 and back: a raised-cosine rise over ``ramp`` from ``t0``, 1 for
     ``hold``, a raised-cosine fall over ``ramp``; returns it and its second derivative."""
@@ -523,7 +527,8 @@ def _plateau(t, t0, ramp, hold):
 
 
 def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_rad=np.radians(0.0105),
-              vib_m=0.02e-3, phone_field_b_ut=PHONE_FIELD_B_UT, rest_s=0.0, field_w=EARTH_FIELD_W, g=G0):
+              vib_m=0.02e-3, phone_field_b_ut=PHONE_FIELD_B_UT, rest_s=0.0, vib_span=(1.0 / 3.0, 2.0 / 3.0), hand=None,
+              field_w=EARTH_FIELD_W, g=G0):
     """Slow handling (yaw ±35°, pitch and roll ±15° at 0.05–0.12 Hz) with a phone lying on the
     sensor; during the middle third it vibrates: an angular vibration of ``vib_angle_rad``
     about a skew body axis and a translation of ``vib_m`` along another, both at ``vib_hz``
@@ -538,30 +543,45 @@ def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_r
     by its 285.7 Hz sampling, or its own), 3.5–3.7 m/s² RMS in the accelerometer and
     2.1 °/s RMS in the gyro above 20 Hz. The MPU-9250 of ``compare.motion_dataset`` (41–45 Hz
     filters, 200 Hz) turns ±0.02 mm at 150 Hz into 3.6 m/s² and ±0.0105° into 1.8 °/s RMS
-    above 20 Hz, aliased to 50 Hz."""
+    above 20 Hz, aliased to 50 Hz.
+
+    ``vib_span`` = (on, off): the fractions of the motion between which it vibrates (default the
+    middle third). ``hand``: a dict of `shake`'s hand arguments (as in `near_magnet`): the sensor
+    is handled as `shake` moves it (turns and translation) instead of the slow turns. Trial 27's
+    hand: |ω| median 32 °/s, 99th percentile 96 °/s, its power's median at 2.0 Hz; the
+    acceleration below 20 Hz 2.3 m/s² RMS with its median at 0.70 Hz; and it vibrates from 22 s
+    into its 117 s of movement to the end (the accelerometer's RMS above 20 Hz 3.6–4.1 m/s² in
+    every 5 s from 68 to 163 s, 0.1 before): ``compare.MOTION_SETUP`` runs ``vibration`` so."""
     t, warp = _time_from_rest(duration_s, fs_hz, rest_s)
     rng = np.random.default_rng(seed)
-    ph = rng.uniform(0, 2 * np.pi, size=3)
-    yaw = _swing(0.6, 0.3, ph[0])
-    pitch = _swing(0.25, 0.5, ph[1])
-    roll = _swing(0.25, 0.75, ph[2])
+    on, off = (float(x) for x in vib_span)
+    if not 0.0 <= on < off <= 1.0:
+        raise ValueError(f"vib_span (on, off) needs 0 <= on < off <= 1, got {vib_span!r}")
+    if hand is None:
+        ph = rng.uniform(0, 2 * np.pi, size=3)
+        yaw = _swing(0.6, 0.3, ph[0])
+        pitch = _swing(0.25, 0.5, ph[1])
+        roll = _swing(0.25, 0.75, ph[2])
+        q_slow, om_slow = _warped_chain(t, warp, yaw, pitch, roll)
+        acc_hand = 0.0
+    else:
+        q_slow, om_slow, _, acc_hand = _hand(t, warp, rng, hand, g)
     tm = t - rest_s  # time since the motion began
     T = tm[-1] if t.size > 1 else 1.0
-    # on/off envelope: raised-cosine ramps of 1 s at T/3 and 2T/3 (its derivatives analytic)
+    # on/off envelope: raised-cosine ramps of 1 s at on·T and off·T (its derivatives analytic)
     def env(tt):
-        up = np.clip(tt - T / 3.0, 0.0, 1.0)
-        down = np.clip(2.0 * T / 3.0 - tt, 0.0, 1.0)
+        up = np.clip(tt - on * T, 0.0, 1.0)
+        down = np.clip(off * T - tt, 0.0, 1.0)
         return 0.5 * (1.0 - np.cos(np.pi * np.minimum(up, down)))
 
     def denv(tt):
-        up, down = tt - T / 3.0, 2.0 * T / 3.0 - tt
+        up, down = tt - on * T, off * T - tt
         d = np.where((up > 0) & (up < 1) & (up <= down), 1.0, 0.0) - np.where((down > 0) & (down < 1) & (down < up),
                                                                               1.0, 0.0)
         return 0.5 * np.pi * np.sin(np.pi * np.clip(np.minimum(up, down), 0.0, 1.0)) * d
 
     w = 2.0 * np.pi * vib_hz
     a = float(vib_angle_rad)
-    q_slow, om_slow = _warped_chain(t, warp, yaw, pitch, roll)
     axis = np.array([0.5, -0.7, 0.5]) / np.linalg.norm([0.5, -0.7, 0.5])
     th = a * env(tm) * np.sin(w * t)
     dth = a * (denv(tm) * np.sin(w * t) + env(tm) * w * np.cos(w * t))
@@ -573,7 +593,7 @@ def vibration(duration_s=60.0, fs_hz=200.0, *, seed=0, vib_hz=150.0, vib_angle_r
     # one period neglected: < 1e-3 of it)
     d_b = np.array([0.2, 0.9, -0.4]) / np.linalg.norm([0.2, 0.9, -0.4])
     d_w = quat_rotate(q_slow, d_b)
-    acc = (-vib_m * w * w * env(tm) * np.sin(w * t))[:, None] * d_w
+    acc = acc_hand + (-vib_m * w * w * env(tm) * np.sin(w * t))[:, None] * d_w
     earth = np.asarray(field_w, float)
     mag_w = earth[None, :] + quat_rotate(q, np.asarray(phone_field_b_ut, float))
     return _assemble("vibration", fs_hz, t, q, om, acc, mag_w, earth, g,
@@ -639,7 +659,7 @@ def circle(duration_s=20.0, fs_hz=200.0, *, seed=0, speed_mps=10.0, radius_m=30.
 
 
 def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=None, field_w=None, g: float = G0,
-                         high_hz: float = 20.0, disturbed_ut: float = 5.0) -> dict:
+                         high_hz: float = 20.0, disturbed_ut: float = 5.0, vibrating_mps2: float = 1.0) -> dict:
     """What a motion does to an IMU, measured alike on a real recording with a reference
     attitude (BROAD's: ``q_wb`` from optical capture, NaN rows skipped) and on a simulated one
     (the truth), over the ``moving`` samples (all if None):
@@ -658,7 +678,10 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     field is against the reference (with ω from the gyro); ``rate_mean_dps``: the gyro's mean
     per axis (a steady spin), ``rate_mean_enu_dps`` the mean of the rate turned to ENU (the spin's
     axis in the world); ``mag_disturbed_frac``: the fraction of the samples whose |m| is
-    more than ``disturbed_ut`` off |B| (a magnet met on the way).
+    more than ``disturbed_ut`` off |B| (a magnet met on the way); ``low_accel_rms_mps2``: RMS of
+    the kinematic acceleration below ``high_hz`` (the hand's, without a vibration);
+    ``vibrating_frac``: the fraction of the samples where the accelerometer's RMS above
+    ``high_hz`` over the surrounding second exceeds ``vibrating_mps2``.
     """
     from scipy.signal import butter, sosfiltfilt, welch
 
@@ -674,6 +697,10 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
     sos = butter(2, high_hz / (0.5 * fs_hz), output="sos")
     high_acc = (acc - sosfiltfilt(sos, acc, axis=0))[sel]
     high_gyro = np.degrees(gyro - sosfiltfilt(sos, gyro, axis=0))[sel]
+    win = max(1, int(round(fs_hz)))
+    high_all = np.sum((acc - sosfiltfilt(sos, acc, axis=0)) ** 2, axis=1)
+    running = np.sqrt(np.convolve(high_all, np.ones(win) / win, mode="same"))[sel]
+    low_kin = sosfiltfilt(sos, acc, axis=0)[sel] - quat_rotate(quat_conjugate(qs), np.tile([0.0, 0.0, g], (qs.shape[0], 1)))
     f_h, p_h = welch(high_acc, fs=fs_hz, nperseg=min(1024, high_acc.shape[0]), axis=0)
     p_h = p_h.sum(axis=1) * (f_h > high_hz)
     m = mag[sel]
@@ -701,6 +728,8 @@ def recording_statistics(fs_hz: float, gyro_b, accel_b, mag_b, q_wb, *, moving=N
         "high_accel_rms_mps2": float(np.sqrt(np.mean(np.sum(high_acc ** 2, axis=1)))),
         "high_gyro_rms_dps": float(np.sqrt(np.mean(np.sum(high_gyro ** 2, axis=1)))),
         "high_accel_peak_hz": float(f_h[np.argmax(p_h)]),
+        "low_accel_rms_mps2": float(np.sqrt(np.mean(np.sum(low_kin ** 2, axis=1)))),
+        "vibrating_frac": float(np.mean(running > vibrating_mps2)),
         "mag_norm_std_ut": float(np.std(np.linalg.norm(m, axis=1))),
         "mag_offset_ut": [float(x) for x in offset],
         "mag_residual_ut": float(np.median(np.linalg.norm(resid, axis=1))),

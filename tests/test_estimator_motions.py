@@ -224,3 +224,18 @@ def test_near_magnet_passes_and_the_magnet_beside_the_resting_sensor():
         mo.make_motion("near_magnet", 10.0, 100.0, rest_s=1.0, magnet_at_rest=(0.15, 3.0))
     with pytest.raises(ValueError, match="hand takes"):
         mo.make_motion("near_magnet", 10.0, 100.0, hand={"spin": 1.0})
+
+
+def test_vibration_span_and_hand():
+    """``vib_span``: it vibrates between those fractions of the motion only; ``hand``: the
+    sensor is turned and moved as `shake` moves it, the vibration on top unchanged."""
+    hand = {"wobble_deg": (4.3, 2.6, 1.85), "wobble_hz": (1.2, 2.0, 2.8), "accel_g": 0.333, "accel_hz": (0.45, 0.7, 1.1)}
+    m = mo.make_motion("vibration", 30.0, 1000.0, seed=2, vib_span=(0.2, 1.0), hand=hand)
+    t, on = m.t_s, m.info["vibrating"]
+    assert not on[t < 6.0].any() and on[(t > 7.0) & (t < 28.9)].all()
+    calm = mo.make_motion("vibration", 30.0, 1000.0, seed=2, vib_span=(0.2, 1.0), hand=hand, vib_angle_rad=0.0,
+                          vib_m=0.0)
+    np.testing.assert_array_equal(m.accel_w[t < 6.0], calm.accel_w[t < 6.0])
+    assert np.sqrt(np.mean(np.sum(calm.accel_w ** 2, axis=1))) == pytest.approx(0.333 * 9.80665 / np.sqrt(2), rel=0.05)
+    with pytest.raises(ValueError, match="vib_span"):
+        mo.make_motion("vibration", 10.0, 100.0, vib_span=(0.5, 0.4))
