@@ -20,7 +20,8 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
              acceleration (``hand_accel_mps2``);
 ``fast_tumble`` the same 2.6 times faster (BROAD's fast rotation trial: median 330 °/s);
 ``shake``    hand shaking: ±(5–10)° wobble at 1–3 Hz and translational shaking of about
-             1 g peak at 2–6 Hz;
+             1 g peak at 2–6 Hz; its arguments (a spin about body y, the wobble's size, pace and
+             base attitude, the translation's pace) make it BROAD's fast combined trial 21;
 ``magnet``   slow handling while a magnet (dipole 0.5 A·m²) is brought to 4 cm of the sensor
              and taken away (field up to ~1.5 mT), then the Earth field alone again;
 ``translation`` fast handheld translations (BROAD's "fast translation" trials, Laidig et al.
@@ -30,13 +31,17 @@ Motions (``MOTIONS``; ``make_motion(name, duration_s, fs_hz, seed=...)``):
 ``near_magnet`` the sensor handled (slow turns, ±0.15 m moves) 0.2–0.45 m from a magnet
              fixed in the room (BROAD's "stationary magnet" trials): the field's direction
              and norm change by a few to tens of µT with the position, partly below the
-             norm test's threshold;
+             norm test's threshold; handled as ``shake`` (``hand``), with the magnet laid beside
+             the resting sensor (``magnet_at_rest``) and brief passes (``passes``) it is BROAD's
+             trial 29, the magnet met on 1.5 % of the movement;
 ``vibration`` slow handling with a phone lying on the sensor (BROAD's "phone vibration"
              trials), vibrating during the middle third: a 150 Hz vibration of ±0.0105° and
              ±0.02 mm (accelerations ~2 g, aliased at a 200 Hz sample rate; through the
              MPU-9250's filters 3.6 m/s² and 1.8 °/s RMS, as BROAD trial 27 measured), and the
              phone's own field, fixed in body axes for the whole motion (a hard-iron offset of
              2.4 µT, trial 27's);
+             ``vib_span`` and ``hand`` make it trial 27 as a whole (vibrating on 81 % of it,
+             the hand's turns and moves);
 ``moving_start`` recording started in motion: a sensor swung in the hand (0.9 Hz sway, 1.9 Hz
              bounce) whose horizontal acceleration is at its peak (``accel_g``, default 0.5 g) at
              t = 0, with slow turns: an estimator that takes its first attitude (and the
