@@ -120,7 +120,7 @@ no lag (``MOTION_MAG_DELAY_S`` = 0); trial 21: 3.7°. The hand shaking of before
 resting sensor for the last 3 s of the rest (|m| 25 µT up; trial 29: 28 µT) and which the
 sensor passes three times at 0.105 m (|m| 20 µT down, 0.8 s each; trial 29: brief passes
 with 20–34 µT), |m| more than 5 µT off on 1.5–1.7 % of the movement (trial 29: 1.5 %); the slow
-handling of before (12 °/s) 0.2–0.45 m from it felt tens of µT all the time
+handling of before (12 °/s) 0.2–0.45 m from it felt tens of µT all the time.
 ``vibration`` is BROAD's phone-vibration trial 27 as a whole: the phone vibrates from 19 % of
 the movement to its end (trial 27: from 22 s into its 117 s; the middle third before), while
 the hand turns the sensor at 23 °/s RMS per axis around 2 Hz and moves it with 2.3 m/s² RMS
