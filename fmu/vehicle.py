@@ -39,7 +39,7 @@ class VehicleSlave(BisoSlave):
         values = self.values
         self.name, params = self.estimator_choice()  # an unset declination: the route site's (CoSimulation)
         # the parameters the estimator takes from its vehicle (Estimator.vehicle_params: the rear axle's
-        # position, its slip angle per g): the car's (CoSimulation), unless the host set them
+        # position, its slip angle per g, its tyres' linear range): the car's (CoSimulation), unless the host set them
         for name in estimator_vehicle_params(self.name):
             if not any(v.key[:3] == ("param", self.name, name) and v.name in self.set_by_host for v in self.specs):
                 params.pop(name, None)

@@ -233,10 +233,12 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
     v_ok = speed_given and math.isfinite(speed)
     comp = (0.0, 0.0, 0.0)
     d_r = c[C["rear_slip"]]
-    if acc_ok:  # the forward and lateral specific force, low-passed (the lateral one only used with D_r)
+    lin2 = c[C["linear_accel2"]]  # a_l² of the tyres' linear range (0: no limit)
+    if acc_ok:  # the forward and lateral specific force, low-passed (the lateral one used with D_r or a_l)
         st[S["forward_accel_lp"]] += a_v * (ax - st[S["forward_accel_lp"]])
-        if d_r != 0.0:
+        if d_r != 0.0 or lin2 > 0.0:
             st[S["lateral_accel_lp"]] += a_v * (ay - st[S["lateral_accel_lp"]])
+    limited = False
     vu = speed  # the speed of r_v used
     if v_ok:
         if st[S["speed_prev_ok"]] != 0.0:
@@ -257,6 +259,14 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
             flags |= fl.ACCEL_GATED
         else:
             st[S["speed_held"]] = speed
+        # beyond the tyres' linear range, and for t_l after: no say in the tilt
+        if lin2 > 0.0:
+            if st[S["forward_accel_lp"]] ** 2 + st[S["lateral_accel_lp"]] ** 2 > lin2:
+                st[S["linear_limit_s"]] = c[C["linear_hold"]]
+                limited = True
+            elif st[S["linear_limit_s"]] > 0.0:
+                st[S["linear_limit_s"]] -= h
+                limited = st[S["linear_limit_s"]] > 0.0
         dx, dy, dz = -c[C["r_v"]], -c[C["r_v"] + 1], -c[C["r_v"] + 2]
         wx, wy, wz = w
         ux, uy, uz = vu + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
@@ -304,7 +314,7 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
         fx, fy, fz = ax - comp[0], ay - comp[1], az - comp[2]
         gate = c[C["inv_gate_g"]] if v_ok else c[C["inv_gate_free_g"]]
         d = abs(math.sqrt(fx * fx + fy * fy + fz * fz) - c[C["g"]]) * gate
-        weight = 1.0 / (1.0 + d * d)
+        weight = 0.0 if limited else 1.0 / (1.0 + d * d)
         if weight < 0.5:
             flags |= fl.ACCEL_GATED
         alpha = c[C["a_accv"]] if v_ok else c[C["a_acc"]]
@@ -508,6 +518,9 @@ CASES = {
     "circle: wheel spin-ups, sideslip, speed gaps": (
         {"speed_point_b_m": (-1.2, 0.0, 0.0), "rear_slip_gradient_rad_per_g": 0.08, "speed_slip_hold_s": 0.2},
         "wheel", fl.ACCEL_COMPENSATED | fl.ACCEL_GATED, False),
+    "circle: slides beyond the tyres' linear range": (
+        {"speed_point_b_m": (-1.2, 0.0, 0.0), "rear_slip_gradient_rad_per_g": 0.08, "linear_accel_mps2": 5.0,
+         "linear_hold_s": 0.3}, "slide", fl.ACCEL_COMPENSATED | fl.ACCEL_GATED, False),
 }
 
 
@@ -526,7 +539,7 @@ def test_kernel_equals_the_plain_step_bit_for_bit(case):
             speed = 3.0 + np.sin(np.arange(n) / 100.0)
             speed[rng.integers(0, n, 40)] = np.nan
             imu_flags = (rng.integers(0, 16, n) * (rng.random(n) < 0.02)).astype(np.int64)
-    elif kind == "wheel":  # a wheel spinning up and landing every 2 s, the speed sometimes missing
+    elif kind in ("wheel", "slide"):  # a wheel spinning up and landing every 2 s, the speed sometimes missing
         m = mo.make_motion("circle", n / 200.0, 200.0, imu_ahead_m=1.2)
         rng = np.random.default_rng(5)
         gyro = m.omega_b + 0.002 * rng.normal(size=(n, 3))
@@ -536,6 +549,8 @@ def test_kernel_equals_the_plain_step_bit_for_bit(case):
         phase = np.arange(n) % 400
         speed[phase < 30] += 0.1 * phase[phase < 30]  # spin-up at 20 m/s², then back at once
         speed[rng.integers(0, n, 10)] = np.nan
+        if kind == "slide":  # 3.3 m/s² of the circle, 0.5 s in 2 s at 8.3 m/s² (beyond a_l = 5)
+            accel[(phase >= 150) & (phase < 250), 1] += 5.0
     elif kind in ("magnet", "moving_start"):
         m = mo.make_motion(kind, n / 200.0, 200.0)
         gyro, accel, mag = m.omega_b.copy(), m.specific_force_b.copy(), m.mag_b.copy()

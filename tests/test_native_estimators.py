@@ -230,6 +230,7 @@ _PARAM_SETS = {
                    "tau_mag_disturbance_s": 0.0, "mag_heading_noise_ut": 4.0},
                   {"rear_slip_gradient_rad_per_g": 0.08, "speed_slip_accel_mps2": 2.0, "speed_slip_hold_s": 0.2,
                    "speed_point_b_m": (-1.2, 0.0, 0.0)},
+                  {"linear_accel_mps2": 2.0, "linear_hold_s": 0.3, "speed_point_b_m": (-1.2, 0.0, 0.0)},
                   {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_interval_s": 0.02,
                    "mag_offset_test_angle_rad": 0.5}],
 }
@@ -298,6 +299,29 @@ def test_wheel_slip_and_sideslip(lib):
     _assert_same(a, b, what="circle with wheel slip")
     _assert_same_state(py, c, what="circle with wheel slip")
     assert (a.flags & fl.ACCEL_GATED).any()
+
+
+def test_slides_beyond_the_linear_range(lib):
+    """biso_plus on a circle (3.3 m/s² of lateral specific force) that slides for 0.5 s in
+    every 2 s (8.3 m/s²), beyond its tyres' linear range a_l = 5 m/s²: the guard taken and
+    released, every output and the state equal."""
+    m = make_motion("circle", 12.0, FS, imu_ahead_m=1.2)
+    rng = np.random.default_rng(8)
+    n = m.t_s.size
+    accel = m.specific_force_b + 0.05 * rng.normal(size=(n, 3))
+    phase = np.arange(n) % 400
+    accel[(phase >= 150) & (phase < 250), 1] += 5.0
+    samples = {"gyro_b": m.omega_b + 0.002 * rng.normal(size=(n, 3)), "accel_b": accel,
+               "mag_b": m.mag_b + 0.3 * rng.normal(size=(n, 3)),
+               "speed_mps": np.asarray(m.info["speed_mps"], dtype=np.float64)}
+    params = {"rear_slip_gradient_rad_per_g": 0.08, "speed_point_b_m": (-1.2, 0.0, 0.0), "linear_accel_mps2": 5.0,
+              "linear_hold_s": 0.3}
+    py, c = make_estimator("biso_plus", FS, **params), NativeEstimator(lib, "biso_plus", FS, **params)
+    a, b = _run_both(py, c, samples, "biso_plus")
+    _assert_same(a, b, what="circle with slides")
+    _assert_same_state(py, c, what="circle with slides")
+    gated = (a.flags & fl.ACCEL_GATED) != 0
+    assert gated[phase == 200].all() and not gated[phase == 100].any()
 
 
 def _bad_samples(seed: int = 5) -> dict[str, np.ndarray]:

@@ -1,5 +1,6 @@
 """The parameters an estimator takes from the car it rides on (``Estimator.vehicle_params``,
-``VehicleSim.estimator_defaults``): the rear axle's position and its slip angle per g."""
+``VehicleSim.estimator_defaults``): the rear axle's position, its slip angle per g and the end of
+its tyres' linear range."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from biso_cosim.cosim import CoSimulation, EstimatorSpec
 from biso_cosim.estimators import estimator_vehicle_params
 from biso_cosim.routes import load_route
 from biso_cosim.vehicle.model import vehicle_parameters
-from biso_cosim.vehicle.tyres import TYRES, TyreParams, magic_formula, rear_slip_gradient_rad_per_g
+from biso_cosim.vehicle.tyres import (TYRES, TyreParams, linear_accel_mps2, magic_formula, rear_slip_gradient_rad_per_g,
+                                      surface_friction)
 
 G0 = 9.80665
 
@@ -32,6 +34,25 @@ def test_the_rear_slip_gradient_is_the_rear_tyres_load_over_their_cornering_stif
     assert rear_slip_gradient_rad_per_g(p, "coulomb") == 0.0
     with pytest.raises(ValueError, match="tyres must be one of 'coulomb', 'magic_formula', got 'slick'"):
         rear_slip_gradient_rad_per_g(p, "slick")
+
+
+def test_the_linear_range_ends_where_the_rear_tyres_secant_stiffness_is_10_percent_below_the_linear():
+    """a_l = g₀ F_y/W_r at the slip angle where F_y/α = 0.9 C_αr (the plugin's own F_y, a rear
+    tyre's static load); it scales with the road's friction as the peak does (λ_μ scales the
+    peak, not the stiffness, so the curve bends sooner), and the coulomb tyres have none."""
+    p = vehicle_parameters()
+    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G0 / 2.0
+    a_l = linear_accel_mps2(p)
+    assert a_l == pytest.approx(6.13, abs=0.01)
+    c_alpha = -magic_formula(w_r, 0.0, 1e-4)[1] / 1e-4
+    f_y = a_l / G0 * w_r
+    alpha = next(a for a in (x * 1e-5 for x in range(1, 20000)) if -magic_formula(w_r, 0.0, math.tan(a))[1] >= f_y)
+    assert f_y / (c_alpha * alpha) == pytest.approx(0.9, abs=2e-3)
+    assert linear_accel_mps2(p, friction_scale=surface_friction("wet")) == pytest.approx(4.29, abs=0.01)
+    assert linear_accel_mps2(p, "coulomb") == 0.0
+    sim = CoSimulation(load_route("figure8"), duration_s=1.0, estimators=["biso_plus"])
+    assert sim.estimators["biso_plus"].params.linear_accel_mps2 == a_l
+    assert "linear_accel_mps2" in estimator_vehicle_params("biso_plus")
 
 
 def test_the_cosimulation_gives_biso_plus_the_cars_values_unless_the_user_set_them():

@@ -27,7 +27,12 @@ magnetometer give. What it adds, each for a weakness docs/design.md §5 and issu
   (docs/vehicle.md). Where v̇ and the accelerometer's forward specific force (both
   low-passed) differ by more than a slope's gravity can explain (a_s), and for t_s after, the
   speed is carried on by the accelerometer's forward acceleration with the estimate's gravity
-  removed, and the longitudinal axis has no say in the tilt;
+  removed, and the longitudinal axis has no say in the tilt. **Beyond the tyres' linear range**
+  (horizontal specific force √(f_x² + f_y²) > a_l, and for t_l after) the slip angles leave
+  the model (saturated tyres slide without bound, the front wheels' odometry leaves the rear
+  axle's speed), the sideslip's velocity and rate enter the compensation wrong by m/s², and
+  the compensated specific force has no say in the tilt: the gyro carries it (docs/vehicle.md,
+  "At the limit");
 * **disturbance-tolerant tilt reference**: the (compensated) specific force is low-pass
   filtered in a quasi-inertial frame I (the gyro's own strapdown frame, as VQF does: Laidig &
   Seel 2023), where gravity is constant and zero-mean accelerations average out without
@@ -288,6 +293,25 @@ class BisoPlusParams:
         source="steady-state single-track model, α_r = W_r/C_αr per g (Gillespie 1992, ch. 6): the axle's "
                "load over its cornering stiffness; the reference car's rear axle with magic_formula tyres "
                "0.078 (4.45 °/g; 4.6-4.9 °/g on the ISO 4138 circle, docs/vehicle.md)")
+    linear_accel_mps2: float = param(
+        0.0, symbol="a_l", unit="m/s²",
+        doc="the tyres' linear range: while the horizontal specific force √(f_x² + f_y²) (the tyres' "
+            "force per mass, low-passed τ_v) is beyond it, and for t_l after, the compensated specific "
+            "force has no say in the tilt (weight 0, flag ACCEL_GATED; the gyro carries the tilt): beyond "
+            "the linear range the axles' slip angles leave the single-track model D_r f_y (they grow "
+            "without bound as the tyres saturate), the front wheels' odometry leaves the rear axle's "
+            "speed (front slip angle, braking slip), and the sideslip's velocity and rate, unknown, enter "
+            "the compensation at several m/s²; 0: no limit (the guard off)",
+        source="where a rear tyre's secant cornering stiffness F_y/α has fallen 10 % below K_yα at its "
+               "static load (Magic Formula, Pacejka 2012 §4.3; the single-track model's linear range: "
+               "Gillespie 1992, ch. 6): the reference car with magic_formula tyres 6.13 m/s² (0.63 g) on a "
+               "dry road, 4.29 wet (vehicle.tyres.linear_accel_mps2; docs/vehicle.md, At the limit)")
+    linear_hold_s: float = param(
+        1.0, symbol="t_l", unit="s",
+        doc="how long after the last sample beyond a_l the compensated specific force stays out of the "
+            "tilt: the sideslip built in a slide decays, and between two slides the other way |f| passes "
+            "through the linear range for a fraction of a second while the sideslip swings over",
+        source="measured: 0.5 s let those swings in, 1-3 s alike (docs/vehicle.md)")
     gravity_mps2: float = param(G0, symbol="g", unit="m/s²", doc="gravity used by the gate", source="")
     # -- sensor
     gyro_range_rad_s: float | None = gyro_range_param()
@@ -303,13 +327,13 @@ STATE_LAYOUT = (
     ("time_s", 1), ("offset_started", 1), ("field_dip_cs", 2), ("accel_bw_i", 6), ("accel_bw_ready", 1),
     ("mag_disturbance", 1), ("heading_start_s", 1), ("tilt_corr_start", 2), ("speed_slip_s", 1),
     ("speed_held", 1), ("forward_accel_lp", 1), ("lateral_accel_lp", 1), ("lateral_speed_prev", 1),
-    ("lateral_dvdt", 1), ("offset_norm_test", 4),
+    ("lateral_dvdt", 1), ("offset_norm_test", 4), ("linear_limit_s", 1),
 )
 _S = layout_offsets(STATE_LAYOUT)
 (_S_INIT, _S_LAM, _S_QI, _S_QC, _S_BIAS, _S_BP, _S_FLP, _S_RLP, _S_RBLP, _S_GYRO, _S_WLP, _S_ALP, _S_REST_T,
  _S_VPREV, _S_DVDT, _S_VOK, _S_WPREV, _S_WDOT, _S_OFF, _S_BI, _S_P, _S_OFF_K, _S_BNORM, _S_DIP, _S_FIELD_OK,
  _S_REJ_T, _S_TIME, _S_OFF_INIT, _S_DIP_CS, _S_BW, _S_BW_OK, _S_MDIST, _S_HEAD_T, _S_TILT_CORR, _S_SLIP_T,
- _S_VHELD, _S_FXLP, _S_FYLP, _S_VYPREV, _S_DVYDT, _S_OTEST) = (_S[name] for name, _ in STATE_LAYOUT)
+ _S_VHELD, _S_FXLP, _S_FYLP, _S_VYPREV, _S_DVYDT, _S_OTEST, _S_LIM_T) = (_S[name] for name, _ in STATE_LAYOUT)
 _S_SIZE = _S["_size"]
 
 _COEF_LAYOUT = (
@@ -322,7 +346,7 @@ _COEF_LAYOUT = (
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
     ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
     ("bias_w_vertical_free", 1), ("slip_accel", 1), ("slip_hold", 1), ("rear_slip", 1),
-    ("inv_offset_test", 1),
+    ("inv_offset_test", 1), ("linear_accel2", 1), ("linear_hold", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
@@ -330,7 +354,7 @@ _C = layout_offsets(_COEF_LAYOUT)
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
  _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
  _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF, _C_SLIP_A, _C_SLIP_HOLD,
- _C_REAR_SLIP, _C_INV_OTEST) = (
+ _C_REAR_SLIP, _C_INV_OTEST, _C_LIN2, _C_LIN_HOLD) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -367,7 +391,7 @@ _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
                  "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
                  "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g",
-                 "mag_offset_test_angle_rad")
+                 "mag_offset_test_angle_rad", "linear_accel_mps2", "linear_hold_s")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
@@ -422,6 +446,8 @@ _V_SLIP_A = _V_INDEX["speed_slip_accel_mps2"]
 _V_SLIP_HOLD = _V_INDEX["speed_slip_hold_s"]
 _V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_g"]
 _V_OTEST = _V_INDEX["mag_offset_test_angle_rad"]
+_V_LIN = _V_INDEX["linear_accel_mps2"]
+_V_LIN_HOLD = _V_INDEX["linear_hold_s"]
 
 
 _alpha_jit = jit(inline="always")(_alpha)
@@ -508,6 +534,7 @@ def biso_plus_derive(v, c):
     c[_C_TAU_M2] = v[_V_SKEW] ** two
     c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP] / G0
     c[_C_INV_OTEST] = 0.0 if v[_V_OTEST] == 0.0 else 1.0 / v[_V_OTEST]
+    c[_C_LIN2], c[_C_LIN_HOLD] = v[_V_LIN] * v[_V_LIN], v[_V_LIN_HOLD]
     return -1
 
 
@@ -581,6 +608,8 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     # the offset's norm test: 1/Θ_o (0: off, the offset always used)
     theta = v["mag_offset_test_angle_rad"]
     c[_C_INV_OTEST] = 0.0 if theta == 0.0 else 1.0 / theta
+    # the tyres' linear range: a_l² (0: no limit)
+    c[_C_LIN2], c[_C_LIN_HOLD] = v["linear_accel_mps2"] * v["linear_accel_mps2"], v["linear_hold_s"]
     return c
 
 
@@ -869,6 +898,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     inv_gate_free = c[_C_INV_GATE_FREE]
     r_head, kappa, a_dist, tau_m2 = c[_C_R_HEAD], c[_C_KAPPA], c[_C_A_DIST], c[_C_TAU_M2]
     slip_a, slip_hold, rear_slip = c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP]
+    lin2, lin_hold = c[_C_LIN2], c[_C_LIN_HOLD]
+    lin_on = lin2 > 0.0
 
     # ---- state into locals
     lw, lx, ly, lz = st[_S_LAM], st[_S_LAM + 1], st[_S_LAM + 2], st[_S_LAM + 3]
@@ -899,6 +930,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     tcx, tcy = st[_S_TILT_CORR], st[_S_TILT_CORR + 1]
     slip_t, vheld, fxlp, fylp = st[_S_SLIP_T], st[_S_VHELD], st[_S_FXLP], st[_S_FYLP]
     vyprev, dvydt = st[_S_VYPREV], st[_S_DVYDT]
+    lim_t = st[_S_LIM_T]
     dtol2 = c[_C_DTOL] * c[_C_DTOL]
 
     # from 0, the samples of the start skipped: an index known to be non-negative needs no
@@ -933,9 +965,10 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
         comp_x = comp_y = comp_z = 0.0
         if acc_ok:
             fxlp += a_v * (ax - fxlp)
-            if rear_slip != 0.0:
+            if rear_slip != 0.0 or lin_on:
                 fylp += a_v * (ay - fylp)
         slipping = False
+        limited = False
         a_fwd = 0.0
         vu = v  # the speed of r_v used: the input's, or carried on through a wheel's slip
         if v_ok:
@@ -957,6 +990,15 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                 flags |= fl.ACCEL_GATED
             else:
                 vheld = v
+            # beyond the tyres' linear range (the horizontal specific force is the tyres' force per
+            # mass): the sideslip and the odometry are not the model's; the tilt is the gyro's
+            if lin_on:
+                if fxlp * fxlp + fylp * fylp > lin2:
+                    lim_t = lin_hold
+                    limited = True
+                elif lim_t > 0.0:
+                    lim_t -= h
+                    limited = lim_t > 0.0
             # IMU velocity u = (v, v_y, 0) + ω × d, d = −r_v; acceleration u̇ + ω × u
             ux, uy, uz = vu + wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx
             if rear_slip != 0.0:
@@ -1012,6 +1054,8 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                 fx, fy, fz, fnorm = ax, ay, az, math.sqrt(f2)
             d = abs(fnorm - g) * (inv_gate_g if v_ok else inv_gate_free)
             weight = 1.0 / (1.0 + d * d)
+            if limited:
+                weight = 0.0
             if weight < 0.5:
                 flags |= fl.ACCEL_GATED
             alpha = a_accv if v_ok else a_acc
@@ -1241,6 +1285,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     st[_S_TILT_CORR], st[_S_TILT_CORR + 1] = tcx, tcy
     st[_S_SLIP_T], st[_S_VHELD], st[_S_FXLP], st[_S_FYLP] = slip_t, vheld, fxlp, fylp
     st[_S_VYPREV], st[_S_DVYDT] = vyprev, dvydt
+    st[_S_LIM_T] = lim_t
 
 
 @jit
@@ -1260,7 +1305,7 @@ class BisoPlusEstimator(Estimator):
     Params = BisoPlusParams
     state_layout = STATE_LAYOUT
     inputs = ("speed_mps", "imu_flags")
-    vehicle_params = ("speed_point_b_m", "rear_slip_gradient_rad_per_g")
+    vehicle_params = ("speed_point_b_m", "rear_slip_gradient_rad_per_g", "linear_accel_mps2")
     estimates_bias = True
     loop_kernel = _biso_plus_loop
     retune_kernel = biso_plus_derive

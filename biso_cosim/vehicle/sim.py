@@ -273,13 +273,16 @@ class VehicleSim:
         (the rear axle's centre) seen from the IMU site, body axes, m; and
         ``rear_slip_gradient_rad_per_g``, the rear axle's slip angle per g of lateral
         acceleration of its tyres (``tyres.rear_slip_gradient_rad_per_g``: W_r/C_αr, 0 for
-        the coulomb tyres)."""
-        from biso_cosim.vehicle.tyres import rear_slip_gradient_rad_per_g
+        the coulomb tyres); ``linear_accel_mps2``, the end of the rear tyres' linear range on
+        the route's road (``tyres.linear_accel_mps2``, 0 for the coulomb tyres)."""
+        from biso_cosim.vehicle.tyres import linear_accel_mps2, rear_slip_gradient_rad_per_g, surface_friction
 
         ix = self.index
         return {"speed_point_b_m": tuple(float(v) for v in ix.rear_axle_b - ix.imu_pos_b),
                 "rear_slip_gradient_rad_per_g": rear_slip_gradient_rad_per_g(self.parameters, self.tyres,
-                                                                             self.tyre_params)}
+                                                                             self.tyre_params),
+                "linear_accel_mps2": linear_accel_mps2(self.parameters, self.tyres, self.tyre_params,
+                                                       surface_friction(self.surface))}
 
     # ------------------------------------------------------------------ placement
     def reset(self) -> None:

@@ -394,6 +394,36 @@ def rear_slip_gradient_rad_per_g(vehicle: dict[str, float], tyres: str = DEFAULT
     return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
 
 
+def linear_accel_mps2(vehicle: dict[str, float], tyres: str = DEFAULT_TYRE_MODEL,
+                      params: TyreParams | None = None, friction_scale: float = 1.0) -> float:
+    """a_l, the end of the rear tyres' linear range as a horizontal specific force, m/s²: the
+    lateral force per load, times g₀, at which a rear tyre's secant cornering stiffness F_y/α
+    (the single-track model's stiffness) has fallen 10 % below K_yα, at its static load W_r on a
+    road of friction scale ``friction_scale`` (λ_μ scales the peak, not the stiffness, so the
+    range shrinks with it). Pure lateral slip of the Magic Formula (Pacejka 2012 §4.3); beyond
+    it the slip angle grows faster than D_r f_y and, at the peak (about 1.04 g here), without
+    bound. 6.1 m/s² (0.63 g) for the reference car on ``TYRES`` on a dry road (4.3 wet); 0 for the coulomb
+    tyres (no limit: they steer kinematically up to their sudden slide, and their car is the
+    one before issue 26, kept as it was)."""
+    if tyres not in TYRE_MODELS:
+        raise ValueError(f"tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
+    if tyres == "coulomb":
+        return 0.0
+    t = TYRES if params is None else params
+    w_r = vehicle["cg_behind_front_axle_m"] / vehicle["wheelbase_m"] * vehicle["total_mass_kg"] * G0 / 2.0
+    k = t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n)))
+
+    def secant(alpha: float) -> float:
+        return abs(magic_formula(w_r, 0.0, math.tan(alpha), params=t, friction_scale=friction_scale)[1]) / (k * alpha)
+
+    lo, hi = 1e-4, 0.5  # bisection on the slip angle: the secant falls monotonically over (0, 0.5)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if secant(mid) > 0.9 else (lo, mid)
+    alpha = 0.5 * (lo + hi)
+    return G0 * abs(magic_formula(w_r, 0.0, math.tan(alpha), params=t, friction_scale=friction_scale)[1]) / w_r
+
+
 STATE_STRIDE = 18
 """Numbers of the plugin state per wheel (tyres.c: slip ratio, lateral slip, load, F_x, F_y,
 in contact, the ABS's release of the brake torque, the friction scale under the tyre, the

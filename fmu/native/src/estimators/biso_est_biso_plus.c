@@ -113,6 +113,9 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     c[C(REAR_SLIP)] = p[P(REAR_SLIP_GRADIENT_RAD_PER_G)] / BISO_EST_K_G0;  /* rad per m/s^2 */
     /* the offset's norm test: 1/Theta_o (0: off, the offset always used) */
     c[C(INV_OFFSET_TEST)] = p[P(MAG_OFFSET_TEST_ANGLE_RAD)] == 0.0 ? 0.0 : 1.0 / p[P(MAG_OFFSET_TEST_ANGLE_RAD)];
+    /* the tyres' linear range: a_l^2 (0: no limit) */
+    c[C(LINEAR_ACCEL2)] = p[P(LINEAR_ACCEL_MPS2)] * p[P(LINEAR_ACCEL_MPS2)];
+    c[C(LINEAR_HOLD)] = p[P(LINEAR_HOLD_S)];
     /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
     if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
@@ -410,6 +413,8 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const double inv_gate_free = c[C(INV_GATE_FREE_G)];
         const double r_head = c[C(R_HEAD)], kappa = c[C(KAPPA)], a_dist = c[C(A_DIST)], tau_m2 = c[C(TAU_M2)];
         const double slip_a = c[C(SLIP_ACCEL)], slip_hold = c[C(SLIP_HOLD)], rear_slip = c[C(REAR_SLIP)];
+        const double lin2 = c[C(LINEAR_ACCEL2)], lin_hold = c[C(LINEAR_HOLD)];
+        const int lin_on = lin2 > 0.0;
 
         /* ---- state */
         double lw, lx, ly, lz;
@@ -431,8 +436,9 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         double head_t = st[S(HEADING_START_S)], tcx = st[S(TILT_CORR_START)], tcy = st[S(TILT_CORR_START) + 1];
         double slip_t = st[S(SPEED_SLIP_S)], vheld = st[S(SPEED_HELD)], fxlp = st[S(FORWARD_ACCEL_LP)];
         double fylp = st[S(LATERAL_ACCEL_LP)], vyprev = st[S(LATERAL_SPEED_PREV)], dvydt = st[S(LATERAL_DVDT)];
+        double lim_t = st[S(LINEAR_LIMIT_S)];
         double vu = v, a_fwd = 0.0;
-        int slipping = 0;
+        int slipping = 0, limited = 0;
         double tw;
         int head_start;
         double wx, wy, wz, comp_x = 0.0, comp_y = 0.0, comp_z = 0.0, ex = 0.0, ey = 0.0, ez = 0.0;
@@ -462,7 +468,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         v_ok = isfinite(v);
         if (chk.acc_ok) {
             fxlp += a_v * (ax - fxlp);
-            if (rear_slip != 0.0) fylp += a_v * (ay - fylp);
+            if (rear_slip != 0.0 || lin_on) fylp += a_v * (ay - fylp);
         }
         if (v_ok) {
             double vx_, vy_, vz_;
@@ -484,6 +490,17 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                 flags |= BISO_EST_FLAG_ACCEL_GATED;
             } else {
                 vheld = v;
+            }
+            /* beyond the tyres' linear range (the horizontal specific force is the tyres' force per
+               mass): the sideslip and the odometry are not the model's; the tilt is the gyro's */
+            if (lin_on) {
+                if (fxlp * fxlp + fylp * fylp > lin2) {
+                    lim_t = lin_hold;
+                    limited = 1;
+                } else if (lim_t > 0.0) {
+                    lim_t -= h;
+                    limited = lim_t > 0.0;
+                }
             }
             /* IMU velocity u = (v, v_y, 0) + w x d, d = -r_v; acceleration u' + w x u */
             vx_ = vu + wy * dz - wz * dy; vy_ = wz * dx - wx * dz; vz_ = wx * dy - wy * dx;
@@ -544,6 +561,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
             }
             d = fabs(fnorm - g) * (v_ok ? inv_gate_g : inv_gate_free);
             weight = 1.0 / (1.0 + d * d);
+            if (limited) weight = 0.0;
             if (weight < 0.5) flags |= BISO_EST_FLAG_ACCEL_GATED;
             alpha = v_ok ? a_accv : a_acc;
             start = h > alpha * (t + h);
@@ -750,6 +768,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         st[S(TIME_S)] = t;
         st[S(SPEED_SLIP_S)] = slip_t; st[S(SPEED_HELD)] = vheld; st[S(FORWARD_ACCEL_LP)] = fxlp;
         st[S(LATERAL_ACCEL_LP)] = fylp; st[S(LATERAL_SPEED_PREV)] = vyprev; st[S(LATERAL_DVDT)] = dvydt;
+        st[S(LINEAR_LIMIT_S)] = lim_t;
         out->q_wb[0] = q.w; out->q_wb[1] = q.x; out->q_wb[2] = q.y; out->q_wb[3] = q.z;
         out->flags = flags;
         out->gyro_bias_b[0] = b.bx; out->gyro_bias_b[1] = b.by; out->gyro_bias_b[2] = b.bz;

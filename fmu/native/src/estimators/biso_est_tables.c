@@ -392,6 +392,14 @@ static const biso_est_param params_biso_plus[] = {
      "slip angle of the axle at r_v per g of lateral specific force: the point's velocity is taken as (v, \342\210\222(D_r/g\342\202\200) |v| f_y, 0) in body axes, f_y the accelerometer's lateral specific force low-passed (\317\204_v), instead of (v, 0, 0); 0: the point does not slide sideways (kinematic steering)",
      "steady-state single-track model, \316\261_r = W_r/C_\316\261r per g (Gillespie 1992, ch. 6): the axle's load over its cornering stiffness; the reference car's rear axle with magic_formula tyres 0.078 (4.45 \302\260/g; 4.6-4.9 \302\260/g on the ISO 4138 circle, docs/vehicle.md)",
      BISO_EST_REAL, 0, 1, 0.0, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"linear_accel_mps2", "a_l", "m/s\302\262", "m/s2",
+     "the tyres' linear range: while the horizontal specific force \342\210\232(f_x\302\262 + f_y\302\262) (the tyres' force per mass, low-passed \317\204_v) is beyond it, and for t_l after, the compensated specific force has no say in the tilt (weight 0, flag ACCEL_GATED; the gyro carries the tilt): beyond the linear range the axles' slip angles leave the single-track model D_r f_y (they grow without bound as the tyres saturate), the front wheels' odometry leaves the rear axle's speed (front slip angle, braking slip), and the sideslip's velocity and rate, unknown, enter the compensation at several m/s\302\262; 0: no limit (the guard off)",
+     "where a rear tyre's secant cornering stiffness F_y/\316\261 has fallen 10 % below K_y\316\261 at its static load (Magic Formula, Pacejka 2012 \302\2474.3; the single-track model's linear range: Gillespie 1992, ch. 6): the reference car with magic_formula tyres 6.13 m/s\302\262 (0.63 g) on a dry road, 4.29 wet (vehicle.tyres.linear_accel_mps2; docs/vehicle.md, At the limit)",
+     BISO_EST_REAL, 0, 1, 0.0, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"linear_hold_s", "t_l", "s", "s",
+     "how long after the last sample beyond a_l the compensated specific force stays out of the tilt: the sideslip built in a slide decays, and between two slides the other way |f| passes through the linear range for a fraction of a second while the sideslip swings over",
+     "measured: 0.5 s let those swings in, 1-3 s alike (docs/vehicle.md)",
+     BISO_EST_REAL, 0, 1, 0x1.0000000000000p+0, 0.0, HUGE_VAL, 0, NULL, 0},
     {"gravity_mps2", "g", "m/s\302\262", "m/s2",
      "gravity used by the gate",
      "",
@@ -405,7 +413,7 @@ static const biso_est_param params_biso_plus[] = {
      "PS-MPU-9250A-01 \302\2473.2 (\302\2612\342\200\246\302\26116 g)",
      BISO_EST_REAL, 1, 1, NAN, 0.0, HUGE_VAL, 1, NULL, 0},
 };
-static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47};
+static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49};
 
 const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
     {"biso", "faithful BISO: Poisson equation with cross-linked positional correction (Aleshkin et al. 2024, reading D)",
@@ -422,5 +430,5 @@ const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
      params_dcm_pi, family_index_dcm_pi, 9, NULL, 0},
     {"biso_plus", "BISO family for vehicles: gyro-bias estimation, acceleration compensation from speed, gating, magnetic disturbance detection, unbiased cross-link",
      BISO_EST_FAMILY_BISO_PLUS, BISO_EST_INPUT_SPEED_MPS | BISO_EST_INPUT_IMU_FLAGS, 1,
-     params_biso_plus, family_index_biso_plus, 48, NULL, 0},
+     params_biso_plus, family_index_biso_plus, 50, NULL, 0},
 };
