@@ -143,3 +143,38 @@ def test_the_rear_axle_slides_in_a_steady_bend_and_its_sideslip_is_compensated()
     assert pitch0 == pytest.approx(expected, rel=0.3)
     assert abs(float(np.mean(err["pitch"][steady]))) < 0.2 * pitch0
     assert float(np.sqrt(np.mean(err["roll"][steady] ** 2))) <= float(np.sqrt(np.mean(err0["roll"][steady] ** 2)))
+
+
+def test_at_the_limit_the_sideslip_leaves_the_model_and_the_gyro_holds_the_tilt():
+    """A hard driver at 9-10 m/s² of lateral acceleration on figure8 (``limit_drive``: the steering
+    swinging, full throttle or full brake): the rear axle slides far beyond the single-track
+    model's slip angle D_r f_y, whose sideslip velocity and rate then enter the compensation
+    wrong by several m/s²; ungated, the tilt follows them. Beyond the tyres' linear range a_l
+    (the car's, ``VehicleSim.estimator_defaults``) biso_plus holds the tilt with the gyro."""
+    from biso_cosim.vehicle.handling import limit_drive
+
+    sim, res, _ = limit_drive("figure8", duration_s=20.0)
+    vp = sim.vehicle.estimator_defaults()
+    a_l = vp["linear_accel_mps2"]
+    assert 5.5 < a_l < 6.5  # 0.63 g: the rear tyre's secant stiffness 10 % below K_yα
+    fy = res.truth.specific_force_b[:, 1]
+    assert np.abs(fy).max() > 1.4 * a_l
+    # the rear axle's slip angle against the model's
+    lever = np.asarray(vp["speed_point_b_m"])
+    v = _to_body(res.truth.q_wb, res.truth.vel_w) + np.cross(res.truth.omega_b, lever)
+    moving = v[:, 0] > 3.0
+    beta = np.degrees(np.abs(np.arctan2(v[moving, 1], v[moving, 0])))
+    beta_model = math.degrees(vp["rear_slip_gradient_rad_per_g"]) * np.abs(fy[moving]).max() / G
+    assert beta.max() > 2.5 * beta_model
+    fs = float(res.sensor["output_rate_hz"])
+    odometry = sim.odometry_mps(res.truth)
+    unguarded = make_estimator("biso_plus", fs, declination_rad=math.radians(res.site["declination_deg"]),
+                               **(vp | {"linear_accel_mps2": 0.0}))
+    err0 = angle_errors_deg(unguarded.update(res.imu.gyro_b, res.imu.accel_b, res.imu.mag_b,
+                                             speed_mps=odometry).q_wb, res.truth.q_wb)
+    assert np.abs(err0["roll"]).max() > 8.0
+    err = res.errors("biso_plus")
+    assert np.abs(err["roll"]).max() < 2.0 and np.abs(err["pitch"]).max() < 2.0
+    assert np.abs(err["heading"]).max() < 3.5  # the start's (2.6°), as without the guard
+    flags = res.estimates["biso_plus"][1]
+    assert (flags[np.abs(fy) > 1.2 * a_l] & fl.ACCEL_GATED).all()

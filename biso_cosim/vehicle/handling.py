@@ -330,6 +330,57 @@ def step_steer_series(*, speed_mps: float = 80.0 / 3.6, lateral_accel_mps2: floa
             "yaw_rate_rad_s": r, "lateral_accel_mps2": ay, "speed_mps": truth.speed_mps, "step_rad": steer}
 
 
+def limit_drive(route="figure8", *, duration_s: float = 40.0, speed_mps: float = 14.0,
+                lateral_accel_mps2: float = 9.0, look_ahead_s: float = 0.25, seed: int = 0,
+                estimators=("biso_plus",)):
+    """Drive ``route`` at the limit as a hard (or learning) driver does, not as the scripted
+    driver: pure pursuit with a short look-ahead (``look_ahead_s`` × speed, at least 4 m: the
+    steering swings, here about 0.5 rad/s RMS, up to 0.43 rad), full throttle below the target
+    speed and full brake above it (±0.3 m/s), the target min(``speed_mps``, √(a/κ)) of the
+    largest curvature κ in the next max(15 m, v²/12) at a lateral acceleration
+    ``lateral_accel_mps2`` beyond the tyres' linear range (figure8, 14 m/s, 9 m/s²: 9-10 m/s² of
+    lateral specific force, the rear axle sliding at up to 15-20° in the loops, the front wheels
+    braked beyond their peak slip in the ABS). 1 s braked at rest first; the last 20 m braked to
+    rest. Returns (the ``CoSimulation``, its ``RunResult``, the commands (steer, drive, brake)
+    per control period)."""
+    from biso_cosim.cosim import CoSimulation
+    from biso_cosim.vehicle.driver import DriverCommand
+
+    sim = CoSimulation(route, duration_s=duration_s, seed=seed, estimators=estimators)
+    path = sim.route.path
+    wheelbase = sim.vehicle.parameters["wheelbase_m"]
+    n = int(math.ceil(duration_s * sim.vehicle.control_rate_hz - 1e-9))
+    x, y, yaw = sim.route.start_xy_yaw
+    v, idx, commands = 0.0, 0, []
+    for k in range(n):
+        lo, hi = max(idx - 20, 0), min(idx + 400, len(path) - 1)
+        idx = lo + int(np.argmin((path.x_m[lo:hi] - x) ** 2 + (path.y_m[lo:hi] - y) ** 2))
+        s = path.s_m[idx]
+        ahead = (path.s_m > s) & (path.s_m < s + max(15.0, v * v / 12.0))
+        kappa = float(np.abs(path.curvature_per_m[ahead]).max()) if ahead.any() else 0.0
+        target = min(speed_mps, math.sqrt(lateral_accel_mps2 / kappa)) if kappa > 1e-6 else speed_mps
+        if path.s_m[-1] - s < 20.0:
+            target = 0.0
+        look = max(4.0, look_ahead_s * v)
+        j = min(int(np.searchsorted(path.s_m, s + look)), len(path) - 1)
+        alpha = (math.atan2(path.y_m[j] - y, path.x_m[j] - x) - yaw + math.pi) % (2.0 * math.pi) - math.pi
+        steer = min(max(math.atan(2.0 * wheelbase * math.sin(alpha) / look), -0.6), 0.6)
+        if k < sim.vehicle.control_rate_hz:
+            command = DriverCommand(0.0, 0.0, 1.0)
+        elif v < target - 0.3:
+            command = DriverCommand(steer, 1.0, 0.0)
+        elif v > target + 0.3:
+            command = DriverCommand(steer, 0.0, 1.0)
+        else:
+            command = DriverCommand(steer, 0.0, 0.0)
+        commands.append((command.steer_rad, command.drive, command.brake))
+        _, truth, _ = sim.step(command)
+        (x, y), (qw, qx, qy, qz) = truth.pos_w[-1, :2], truth.q_wb[-1]
+        yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+        v = float(np.hypot(*truth.vel_w[-1, :2]))
+    return sim, sim.result(), np.array(commands)
+
+
 def step_cost_us(*, steps: int = 5000, repeats: int = 7) -> dict[str, float]:
     """µs per mj_step of the car on flat ground with each tyre model (driving a curve), the
     best of ``repeats`` interleaved timings: the tyre plugin's cost against today's step."""
