@@ -17,7 +17,7 @@ from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _drive_action, _driving_view, _driving_work
 from biso_cosim.routes import Route
 from biso_cosim.routes.path import curvature_speed_limit
-from biso_cosim.vehicle.driver import DriverCommand
+from biso_cosim.vehicle.driver import DriverCommand, DriverParams
 
 __all__ = ["DrivingEnv"]
 
@@ -54,7 +54,13 @@ class DrivingEnv(CosimEnv, EzPickle):
     | Num | Action | Min | Max | Unit |
     |---|---|---|---|---|
     | 0 | throttle: > 0 drive torque at the rear wheels (fraction of 2400 N·m at the axle), < 0 brakes (fraction of each wheel's largest brake torque, all four wheels) | -1 | 1 | - |
-    | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left | -1 | 1 | - |
+    | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left, that the steering turns towards at up to `steer_rate_rad_s` | -1 | 1 | - |
+
+    The steering system turns the road wheels at most `steer_rate_rad_s` (0.6 rad/s by
+    default, about 500 °/s at the steering wheel with a 15:1 ratio: a brisk driver's rate,
+    the scripted driver's `DriverParams.steer_rate_rad_s`), so an action that jumps from lock
+    to lock between steps moves the wheels by 0.012 rad a step at 50 Hz, as a real car's
+    steering would, instead of swinging them 1.2 rad in a few milliseconds.
 
     NaN/inf or a wrong shape raise `ValueError`; out-of-bounds values are clipped (or
     refused with `action_bounds="raise"`), as MuJoCo would clamp the controls.
@@ -162,6 +168,8 @@ class DrivingEnv(CosimEnv, EzPickle):
                                   "before them, m/s²",
         "stall_s": "the episode is truncated when the car gains less than 1 m along the route in this time, s "
                    "(None: never)",
+        "steer_rate_rad_s": "largest rate of the road-wheel angle the steering system turns at, rad/s (None: "
+                            "no limit)",
         "max_cross_track_m": "cross-track error that counts as leaving the route, m",
         "rollover_tilt_rad": "tilt of the body's up axis from the vertical that counts as a roll-over, rad (60°)",
     }
@@ -173,6 +181,7 @@ class DrivingEnv(CosimEnv, EzPickle):
                  alignment_s: float = 2.0,
                  preview_points: int = 10, preview_spacing_m: float = 2.0, progress_weight: float = 1.0,
                  cross_track_weight: float = 1.0, rollover_penalty: float = 5.0, off_route_penalty: float = 5.0,
+                 steer_rate_rad_s: float | None = DriverParams.steer_rate_rad_s,
                  max_cross_track_m: float = 5.0, rollover_tilt_rad: float = math.radians(60.0),
                  speed_limit_mps: float | None = 10.0, speed_limit_accel_mps2: float = 3.0,
                  stall_s: float | None = 10.0,
@@ -204,6 +213,8 @@ class DrivingEnv(CosimEnv, EzPickle):
             "speed_limit_mps", speed_limit_mps, low=0.0, low_open=True)
         self.speed_limit_accel_mps2 = _check_number("speed_limit_accel_mps2", speed_limit_accel_mps2, low=0.0,
                                                     low_open=True)
+        self.steer_rate_rad_s = None if steer_rate_rad_s is None else _check_number(
+            "steer_rate_rad_s", steer_rate_rad_s, low=0.0, low_open=True)
         self.stall_s = None if stall_s is None else _check_number("stall_s", stall_s, low=0.0, low_open=True)
         self.rollover_tilt_rad = _check_number("rollover_tilt_rad", rollover_tilt_rad, low=0.0, high=math.pi,
                                                low_open=True)
@@ -307,14 +318,15 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     def _apply_action(self, action: Any) -> float:
         """Check the action (``_check_action``'s errors and clipping) and write the controls
-        of its DriverCommand (see the action space) into MuJoCo's ctrl: for an action inside
+        of its DriverCommand (see the action space; the steering rate-limited) into MuJoCo's ctrl: for an action inside
         the bounds in one kernel call (``_drive_action``). Returns the driver's progress
         along the route before the step (m)."""
         a = self._action_array(action)
         vehicle = self._sim.vehicle
         space = self.action_space
         car = vehicle.parameters
-        apply = (space.low, space.high, car["max_steer_rad"], car["brake_kv_nms_per_rad"],
+        max_step = math.inf if self.steer_rate_rad_s is None else self.steer_rate_rad_s * self.dt
+        apply = (space.low, space.high, car["max_steer_rad"], max_step, car["brake_kv_nms_per_rad"],
                  car["max_brake_torque_per_wheel_nm"], *vehicle.control_arrays, vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied
