@@ -91,14 +91,18 @@ class DrivingEnv(CosimEnv, EzPickle):
     Every term is bounded by the step's progress or is a one-off at the end, so that no
     penalty accumulates while the car stands or crawls:
 
-    - *reward_progress:* `progress_weight` × min(Δs, v_lim·dt), Δs the distance gained along
-      the route in the step (m; negative when driving back), credited up to the road's speed
-      limit v_lim at the car's position: about 0.14 a step at 7 m/s, and the route's length
-      over an episode that drives it within the limit (387 for `figure8`). The limit is
-      `speed_limit_mps`, lowered in turns to √(a/|κ|) (κ the route's curvature, a =
+    - *reward_progress:* `progress_weight` × Δs', the credited progress Δs' = min(Δs, L) −
+      `overspeed_weight` × max(Δs − L, 0), Δs the distance gained along the route in the step
+      (m; negative when driving back), L = v_lim·dt the distance the road's speed limit v_lim
+      at the car's position allows in a step: about 0.14 a step at 7 m/s, and the route's
+      length over an episode that drives it within the limit (387 for `figure8`). The limit
+      is `speed_limit_mps`, lowered in turns to √(a/|κ|) (κ the route's curvature, a =
       `speed_limit_accel_mps2`) and before them so that braking at a reaches the turn's limit
-      (`speed_limits_mps`); speed above it earns nothing, so the risk of a fast turn buys
-      nothing (None: no limit, every metre counts);
+      (`speed_limits_mps`). Each metre beyond the limit's takes `overspeed_weight` metres off
+      (default 1: a step at 1.5·v_lim earns what one at 0.5·v_lim does, at 2·v_lim nothing),
+      so the reward peaks at the limit and its slope tells the agent which way to go (with
+      0, speed above the limit is merely worth nothing, and a policy may drive the turns at
+      any speed it survives). |Δs'| ≤ |Δs|. (None: no limit, every metre counts);
     - *reward_cross_track:* −`progress_weight` × `cross_track_weight` × max(Δs', 0) ×
       min(|e| / `max_cross_track_m`, 1), Δs' the credited progress, e the cross-track error:
       the fraction of the step's forward progress lost for driving off the centre line, all of
@@ -164,6 +168,8 @@ class DrivingEnv(CosimEnv, EzPickle):
         "off_route_penalty": "penalty of leaving the route (ends the episode), in units of the progress term (m of road)",
         "speed_limit_mps": "speed up to which progress is credited, m/s (None: all progress); lowered in turns "
                            "and before them by `speed_limit_accel_mps2`",
+        "overspeed_weight": "metres of credited progress taken off for each metre driven beyond the speed "
+                            "limit's, 0 to 1",
         "speed_limit_accel_mps2": "lateral acceleration the speed limit allows in turns, and its deceleration "
                                   "before them, m/s²",
         "stall_s": "the episode is truncated when the car gains less than 1 m along the route in this time, s "
@@ -184,6 +190,7 @@ class DrivingEnv(CosimEnv, EzPickle):
                  steer_rate_rad_s: float | None = DriverParams.steer_rate_rad_s,
                  max_cross_track_m: float = 5.0, rollover_tilt_rad: float = math.radians(60.0),
                  speed_limit_mps: float | None = 10.0, speed_limit_accel_mps2: float = 3.0,
+                 overspeed_weight: float = 1.0,
                  stall_s: float | None = 10.0,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
@@ -207,6 +214,7 @@ class DrivingEnv(CosimEnv, EzPickle):
             "cross_track": _check_number("cross_track_weight", cross_track_weight, low=0.0, high=1.0),
             "rollover": _check_number("rollover_penalty", rollover_penalty, low=0.0),
             "off_route": _check_number("off_route_penalty", off_route_penalty, low=0.0),
+            "overspeed": _check_number("overspeed_weight", overspeed_weight, low=0.0, high=1.0),
         }
         self.max_cross_track_m = _check_number("max_cross_track_m", max_cross_track_m, low=0.0, low_open=True)
         self.speed_limit_mps = None if speed_limit_mps is None else _check_number(
@@ -280,7 +288,8 @@ class DrivingEnv(CosimEnv, EzPickle):
         w = self.weights
         limit = self._speed_limits[max(bisect.bisect_right(self._path_s, info["distance_m"]) - 1, 0)]
         info["speed_limit_mps"] = limit
-        gained_m = min(info["distance_m"] - before, limit * self.dt)  # (the progress credited)
+        moved_m, allowed_m = info["distance_m"] - before, limit * self.dt
+        gained_m = min(moved_m, allowed_m) - w["overspeed"] * max(moved_m - allowed_m, 0.0)  # (the progress credited)
         edge = min(abs(info["cross_track_m"]) / self.max_cross_track_m, 1.0)
         terms = {
             "reward_progress": w["progress"] * gained_m,
