@@ -93,8 +93,11 @@ def _drive_action(a, low, high, max_steer_rad, max_steer_step_rad, brake_kv, max
         for j in range(wheel_rates.shape[0]):
             rate += wheel_rates[j]
         brake = min(_brake_command(-throttle * max_brake_nm, brake_kv, rate / wheel_rates.shape[0]), 1.0)
-    steer_before = ctrl[actuators[0]]
-    steer = steer_before + min(max(steering * max_steer_rad - steer_before, -max_steer_step_rad), max_steer_step_rad)
+    steer, steer_before = steering * max_steer_rad, ctrl[actuators[0]]
+    if steer > steer_before + max_steer_step_rad:  # (within reach: the target itself, bit for bit)
+        steer = steer_before + max_steer_step_rad
+    elif steer < steer_before - max_steer_step_rad:
+        steer = steer_before - max_steer_step_rad
     _apply_controls(ctrl, actuators, steer, max(throttle, 0.0), brake, wheel_rates, drivetrain)
     return driver_state[S_S]
 

@@ -120,8 +120,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     in which the car gains less than 1 m along the route in `stall_s` seconds is truncated
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    343.0 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
-    356.4 on the procedural routes of those seeds) and completes every one of them (tested).
+    342.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
+    353.7 on the procedural routes of those seeds) and completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
@@ -150,7 +150,9 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     ## Version History
     * v0: Initial version; the speed limit of the progress reward (`speed_limit_mps`,
-      `speed_limit_accel_mps2`) added (2026-12-07).
+      `speed_limit_accel_mps2`) added (2026-12-07); the steering system's rate limit
+      (`steer_rate_rad_s`) and the loss of progress beyond the limit (`overspeed_weight`)
+      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed").
     """
 
     ARGUMENTS = {
