@@ -71,11 +71,13 @@ def _inside(a, low, high):
 
 
 @jit
-def _drive_action(a, low, high, max_steer_rad, brake_kv, max_brake_nm, ctrl, actuators, wheel_rates, drivetrain,
-                  driver_state):
+def _drive_action(a, low, high, max_steer_rad, max_steer_step_rad, brake_kv, max_brake_nm, ctrl, actuators, wheel_rates,
+                  drivetrain, driver_state):
     """Driving-v0's action (throttle, steering) into MuJoCo's ``ctrl`` when it is inside
-    [low, high] (``_inside``): the controls of its DriverCommand, steer = steering ·
-    max_steer_rad, drive = max(throttle, 0), and for a throttle below 0 the brake command
+    [low, high] (``_inside``): the controls of its DriverCommand, steer = the steering
+    command moved towards steering · max_steer_rad by at most ``max_steer_step_rad`` (the
+    steering system's rate limit over one step; the previous command is the one in ``ctrl``),
+    drive = max(throttle, 0), and for a throttle below 0 the brake command
     that asks that fraction of each wheel's largest brake torque ``max_brake_nm`` at the
     wheels' mean spin rate (``_brake_command``, as the scripted driver asks a torque; the
     brakes are dampers of gain ``brake_kv``, so the command itself is not a torque share), by
@@ -91,7 +93,12 @@ def _drive_action(a, low, high, max_steer_rad, brake_kv, max_brake_nm, ctrl, act
         for j in range(wheel_rates.shape[0]):
             rate += wheel_rates[j]
         brake = min(_brake_command(-throttle * max_brake_nm, brake_kv, rate / wheel_rates.shape[0]), 1.0)
-    _apply_controls(ctrl, actuators, steering * max_steer_rad, max(throttle, 0.0), brake, wheel_rates, drivetrain)
+    steer, steer_before = steering * max_steer_rad, ctrl[actuators[0]]
+    if steer > steer_before + max_steer_step_rad:  # (within reach: the target itself, bit for bit)
+        steer = steer_before + max_steer_step_rad
+    elif steer < steer_before - max_steer_step_rad:
+        steer = steer_before - max_steer_step_rad
+    _apply_controls(ctrl, actuators, steer, max(throttle, 0.0), brake, wheel_rates, drivetrain)
     return driver_state[S_S]
 
 

@@ -17,7 +17,7 @@ from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _drive_action, _driving_view, _driving_work
 from biso_cosim.routes import Route
 from biso_cosim.routes.path import curvature_speed_limit
-from biso_cosim.vehicle.driver import DriverCommand
+from biso_cosim.vehicle.driver import DriverCommand, DriverParams
 
 __all__ = ["DrivingEnv"]
 
@@ -54,7 +54,13 @@ class DrivingEnv(CosimEnv, EzPickle):
     | Num | Action | Min | Max | Unit |
     |---|---|---|---|---|
     | 0 | throttle: > 0 drive torque at the rear wheels (fraction of 2400 N·m at the axle), < 0 brakes (fraction of each wheel's largest brake torque, all four wheels) | -1 | 1 | - |
-    | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left | -1 | 1 | - |
+    | 1 | steering: road-wheel angle as a fraction of the largest (0.6 rad), positive left, that the steering turns towards at up to `steer_rate_rad_s` | -1 | 1 | - |
+
+    The steering system turns the road wheels at most `steer_rate_rad_s` (0.6 rad/s by
+    default, about 500 °/s at the steering wheel with a 15:1 ratio: a brisk driver's rate,
+    the scripted driver's `DriverParams.steer_rate_rad_s`), so an action that jumps from lock
+    to lock between steps moves the wheels by 0.012 rad a step at 50 Hz, as a real car's
+    steering would, instead of swinging them 1.2 rad in a few milliseconds.
 
     NaN/inf or a wrong shape raise `ValueError`; out-of-bounds values are clipped (or
     refused with `action_bounds="raise"`), as MuJoCo would clamp the controls.
@@ -85,14 +91,18 @@ class DrivingEnv(CosimEnv, EzPickle):
     Every term is bounded by the step's progress or is a one-off at the end, so that no
     penalty accumulates while the car stands or crawls:
 
-    - *reward_progress:* `progress_weight` × min(Δs, v_lim·dt), Δs the distance gained along
-      the route in the step (m; negative when driving back), credited up to the road's speed
-      limit v_lim at the car's position: about 0.14 a step at 7 m/s, and the route's length
-      over an episode that drives it within the limit (387 for `figure8`). The limit is
-      `speed_limit_mps`, lowered in turns to √(a/|κ|) (κ the route's curvature, a =
+    - *reward_progress:* `progress_weight` × Δs', the credited progress Δs' = min(Δs, L) −
+      `overspeed_weight` × max(Δs − L, 0), Δs the distance gained along the route in the step
+      (m; negative when driving back), L = v_lim·dt the distance the road's speed limit v_lim
+      at the car's position allows in a step: about 0.14 a step at 7 m/s, and the route's
+      length over an episode that drives it within the limit (387 for `figure8`). The limit
+      is `speed_limit_mps`, lowered in turns to √(a/|κ|) (κ the route's curvature, a =
       `speed_limit_accel_mps2`) and before them so that braking at a reaches the turn's limit
-      (`speed_limits_mps`); speed above it earns nothing, so the risk of a fast turn buys
-      nothing (None: no limit, every metre counts);
+      (`speed_limits_mps`). Each metre beyond the limit's takes `overspeed_weight` metres off
+      (default 1: a step at 1.5·v_lim earns what one at 0.5·v_lim does, at 2·v_lim nothing),
+      so the reward peaks at the limit and its slope tells the agent which way to go (with
+      0, speed above the limit is merely worth nothing, and a policy may drive the turns at
+      any speed it survives). |Δs'| ≤ |Δs|. (None: no limit, every metre counts);
     - *reward_cross_track:* −`progress_weight` × `cross_track_weight` × max(Δs', 0) ×
       min(|e| / `max_cross_track_m`, 1), Δs' the credited progress, e the cross-track error:
       the fraction of the step's forward progress lost for driving off the centre line, all of
@@ -110,8 +120,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     in which the car gains less than 1 m along the route in `stall_s` seconds is truncated
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
-    343.0 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
-    356.4 on the procedural routes of those seeds) and completes every one of them (tested).
+    342.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
+    353.7 on the procedural routes of those seeds) and completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
@@ -140,7 +150,9 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     ## Version History
     * v0: Initial version; the speed limit of the progress reward (`speed_limit_mps`,
-      `speed_limit_accel_mps2`) added (2026-12-07).
+      `speed_limit_accel_mps2`) added (2026-12-07); the steering system's rate limit
+      (`steer_rate_rad_s`) and the loss of progress beyond the limit (`overspeed_weight`)
+      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed").
     """
 
     ARGUMENTS = {
@@ -158,10 +170,14 @@ class DrivingEnv(CosimEnv, EzPickle):
         "off_route_penalty": "penalty of leaving the route (ends the episode), in units of the progress term (m of road)",
         "speed_limit_mps": "speed up to which progress is credited, m/s (None: all progress); lowered in turns "
                            "and before them by `speed_limit_accel_mps2`",
+        "overspeed_weight": "metres of credited progress taken off for each metre driven beyond the speed "
+                            "limit's, 0 to 1",
         "speed_limit_accel_mps2": "lateral acceleration the speed limit allows in turns, and its deceleration "
                                   "before them, m/s²",
         "stall_s": "the episode is truncated when the car gains less than 1 m along the route in this time, s "
                    "(None: never)",
+        "steer_rate_rad_s": "largest rate of the road-wheel angle the steering system turns at, rad/s (None: "
+                            "no limit)",
         "max_cross_track_m": "cross-track error that counts as leaving the route, m",
         "rollover_tilt_rad": "tilt of the body's up axis from the vertical that counts as a roll-over, rad (60°)",
     }
@@ -173,8 +189,10 @@ class DrivingEnv(CosimEnv, EzPickle):
                  alignment_s: float = 2.0,
                  preview_points: int = 10, preview_spacing_m: float = 2.0, progress_weight: float = 1.0,
                  cross_track_weight: float = 1.0, rollover_penalty: float = 5.0, off_route_penalty: float = 5.0,
+                 steer_rate_rad_s: float | None = DriverParams.steer_rate_rad_s,
                  max_cross_track_m: float = 5.0, rollover_tilt_rad: float = math.radians(60.0),
                  speed_limit_mps: float | None = 10.0, speed_limit_accel_mps2: float = 3.0,
+                 overspeed_weight: float = 1.0,
                  stall_s: float | None = 10.0,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
@@ -198,12 +216,15 @@ class DrivingEnv(CosimEnv, EzPickle):
             "cross_track": _check_number("cross_track_weight", cross_track_weight, low=0.0, high=1.0),
             "rollover": _check_number("rollover_penalty", rollover_penalty, low=0.0),
             "off_route": _check_number("off_route_penalty", off_route_penalty, low=0.0),
+            "overspeed": _check_number("overspeed_weight", overspeed_weight, low=0.0, high=1.0),
         }
         self.max_cross_track_m = _check_number("max_cross_track_m", max_cross_track_m, low=0.0, low_open=True)
         self.speed_limit_mps = None if speed_limit_mps is None else _check_number(
             "speed_limit_mps", speed_limit_mps, low=0.0, low_open=True)
         self.speed_limit_accel_mps2 = _check_number("speed_limit_accel_mps2", speed_limit_accel_mps2, low=0.0,
                                                     low_open=True)
+        self.steer_rate_rad_s = None if steer_rate_rad_s is None else _check_number(
+            "steer_rate_rad_s", steer_rate_rad_s, low=0.0, low_open=True)
         self.stall_s = None if stall_s is None else _check_number("stall_s", stall_s, low=0.0, low_open=True)
         self.rollover_tilt_rad = _check_number("rollover_tilt_rad", rollover_tilt_rad, low=0.0, high=math.pi,
                                                low_open=True)
@@ -269,7 +290,8 @@ class DrivingEnv(CosimEnv, EzPickle):
         w = self.weights
         limit = self._speed_limits[max(bisect.bisect_right(self._path_s, info["distance_m"]) - 1, 0)]
         info["speed_limit_mps"] = limit
-        gained_m = min(info["distance_m"] - before, limit * self.dt)  # (the progress credited)
+        moved_m, allowed_m = info["distance_m"] - before, limit * self.dt
+        gained_m = min(moved_m, allowed_m) - w["overspeed"] * max(moved_m - allowed_m, 0.0)  # (the progress credited)
         edge = min(abs(info["cross_track_m"]) / self.max_cross_track_m, 1.0)
         terms = {
             "reward_progress": w["progress"] * gained_m,
@@ -307,14 +329,15 @@ class DrivingEnv(CosimEnv, EzPickle):
 
     def _apply_action(self, action: Any) -> float:
         """Check the action (``_check_action``'s errors and clipping) and write the controls
-        of its DriverCommand (see the action space) into MuJoCo's ctrl: for an action inside
+        of its DriverCommand (see the action space; the steering rate-limited) into MuJoCo's ctrl: for an action inside
         the bounds in one kernel call (``_drive_action``). Returns the driver's progress
         along the route before the step (m)."""
         a = self._action_array(action)
         vehicle = self._sim.vehicle
         space = self.action_space
         car = vehicle.parameters
-        apply = (space.low, space.high, car["max_steer_rad"], car["brake_kv_nms_per_rad"],
+        max_step = math.inf if self.steer_rate_rad_s is None else self.steer_rate_rad_s * self.dt
+        apply = (space.low, space.high, car["max_steer_rad"], max_step, car["brake_kv_nms_per_rad"],
                  car["max_brake_torque_per_wheel_nm"], *vehicle.control_arrays, vehicle.driver.state.array)
         before = _drive_action(a, *apply)
         if before != before:  # NaN: not inside the bounds; refused (ValueError), or clipped and applied

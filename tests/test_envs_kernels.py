@@ -161,14 +161,36 @@ def test_drive_action_writes_the_controls_of_its_driver_command():
             command = DriverCommand(steer_rad=steering * max_steer, drive=max(throttle, 0.0), brake=brake)
             apply_command(ControlArrays(expected, actuators, wheel_rates, drivetrain), command)
             ctrl = np.full(7, 9.0)
-            assert _drive_action(np.array([throttle, steering]), low, high, max_steer, kv, max_brake, ctrl, actuators,
-                                 wheel_rates, drivetrain, state.array) == 12.5
+            assert _drive_action(np.array([throttle, steering]), low, high, max_steer, math.inf, kv, max_brake, ctrl,
+                                 actuators, wheel_rates, drivetrain, state.array) == 12.5
             assert ctrl.tobytes() == expected.tobytes()
     for action in ([1.5, 0.0], [0.0, -1.01], [0.0, np.nan], [-np.inf, 0.0]):
         ctrl = np.full(7, 9.0)
-        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, kv, max_brake, ctrl, actuators,
-                                        wheel_rates, drivetrain, state.array))
+        assert math.isnan(_drive_action(np.array(action), low, high, max_steer, math.inf, kv, max_brake, ctrl,
+                                        actuators, wheel_rates, drivetrain, state.array))
         assert (ctrl == 9.0).all()
+
+
+def test_drive_action_turns_the_steering_at_most_its_rate():
+    """The steering command moves towards the action's angle by at most the step's rate limit
+    from the command in ctrl, and reaches it exactly when it is within reach."""
+    actuators = np.array([6, 0, 5, 1, 2, 3, 4], dtype=np.int64)
+    low, high, max_steer, step = np.array([-1.0, -1.0]), np.array([1.0, 1.0]), 0.6, 0.012
+    drivetrain = drivetrain_coefficients(DRIVETRAIN, mass_kg=1300.0, wheel_radius_m=0.316)
+    wheel_rates, state = np.full(4, 20.0), DriverState()
+    for before, steering, after in [(0.0, 1.0, 0.012), (0.3, -1.0, 0.288), (0.3, 0.51, 0.306), (-0.6, -1.0, -0.6),
+                                    (0.1, 0.5, 0.1 + 0.012), (0.1, 0.175, 0.105)]:
+        ctrl = np.zeros(7)
+        ctrl[6] = before
+        _drive_action(np.array([0.2, steering]), low, high, max_steer, step, 4000.0, 1500.0, ctrl, actuators,
+                      wheel_rates, drivetrain, state.array)
+        assert abs(ctrl[6] - before) <= step * (1 + 1e-12)
+        assert ctrl[6] == pytest.approx(after, abs=1e-15)
+    ctrl = np.zeros(7)
+    ctrl[6] = 0.1
+    _drive_action(np.array([0.2, 0.175]), low, high, max_steer, step, 4000.0, 1500.0, ctrl, actuators, wheel_rates,
+                  drivetrain, state.array)
+    assert ctrl[6] == 0.175 * max_steer  # (within reach: the action's angle itself)
 
 
 @pytest.mark.parametrize("reading", ["D", "L"])

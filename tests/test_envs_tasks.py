@@ -452,7 +452,8 @@ def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
         _, reward, terminated, truncated, info = env.step(np.array([0.3, 0.08]))
         gained = info["distance_m"] - before
         before = info["distance_m"]
-        credited = min(gained, info["speed_limit_mps"] * env.unwrapped.dt)
+        allowed = info["speed_limit_mps"] * env.unwrapped.dt
+        credited = min(gained, allowed) - max(gained - allowed, 0.0)
         assert info["reward_progress"] == credited
         expected = -max(credited, 0.0) * min(abs(info["cross_track_m"]) / 3.0, 1.0)
         assert info["reward_cross_track"] == pytest.approx(expected, rel=1e-12, abs=1e-15)
@@ -463,15 +464,17 @@ def test_the_cross_track_term_is_the_fraction_of_the_progress_lost_off_centre():
     assert terminated and info["off_route"] and seen > 10  # (far off centre for a while before the edge)
 
 
-def test_progress_is_credited_up_to_the_speed_limit():
-    """reward_progress = min(Δs, v_lim·dt): a car faster than the limit earns the limit's
-    progress and no more; without a limit every metre counts."""
-    for limit in (5.0, None):
+@pytest.mark.parametrize("overspeed", [0.0, 1.0])
+def test_progress_is_credited_up_to_the_speed_limit(overspeed):
+    """reward_progress = min(Δs, L) − w_o·max(Δs − L, 0), L = v_lim·dt: a car faster than the
+    limit earns the limit's progress less w_o times its excess (w_o = overspeed_weight); without
+    a limit every metre counts."""
+    for limit in (4.0, None):
         env = gym.make("biso_cosim/Driving-v0", route=straight_route(200.0), pose_source="truth",
-                       speed_limit_mps=limit)
+                       speed_limit_mps=limit, overspeed_weight=overspeed)
         obs, info = env.reset(seed=0)
         dt = env.unwrapped.dt
-        before, capped = info["distance_m"], 0
+        before, capped, doubled = info["distance_m"], 0, 0
         while True:
             obs, reward, terminated, truncated, info = env.step(pursue(env, obs, speed_mps=9.0))
             gained = info["distance_m"] - before
@@ -480,14 +483,18 @@ def test_progress_is_credited_up_to_the_speed_limit():
                 assert info["speed_limit_mps"] == math.inf and info["reward_progress"] == gained
             else:
                 assert info["speed_limit_mps"] <= limit
-                assert info["reward_progress"] == min(gained, info["speed_limit_mps"] * dt)
+                allowed = info["speed_limit_mps"] * dt
+                assert info["reward_progress"] == min(gained, allowed) - overspeed * max(gained - allowed, 0.0)
                 capped += gained > limit * dt
+                if gained > 2.0 * allowed:  # (beyond twice the limit's progress a step loses)
+                    assert (info["reward_progress"] < 0.0) == (overspeed == 1.0)
+                    doubled += 1
             assert reward == sum(info[t] for t in env.unwrapped.REWARD_TERMS)
             if terminated or truncated:
                 break
         assert info["finished"]
         if limit is not None:
-            assert capped > 2.0 / dt  # (driven at 9 m/s for most of 200 m: over the limit for seconds)
+            assert capped > 2.0 / dt and doubled > 1.0 / dt  # (driven at 9 m/s for most of 200 m: over twice the limit for seconds)
 
 
 def test_speed_limits_slow_for_turns_and_brake_before_them():
@@ -540,7 +547,8 @@ def test_a_car_that_drives_is_never_stalled():
 @pytest.mark.parametrize(("arguments", "message"), [
     ({"cross_track_weight": 1.5}, "cross_track_weight"), ({"cross_track_weight": -0.1}, "cross_track_weight"),
     ({"stall_s": 0.0}, "stall_s"), ({"stall_s": -1.0}, "stall_s"), ({"speed_limit_mps": 0.0}, "speed_limit_mps"),
-    ({"speed_limit_mps": float("inf")}, "speed_limit_mps"), ({"speed_limit_accel_mps2": -1.0}, "speed_limit_accel_mps2")])
+    ({"speed_limit_mps": float("inf")}, "speed_limit_mps"), ({"speed_limit_accel_mps2": -1.0}, "speed_limit_accel_mps2"),
+    ({"overspeed_weight": 1.5}, "overspeed_weight")])
 def test_bad_reward_settings_are_refused(arguments, message):
     with pytest.raises(ValueError, match=message):
         gym.make("biso_cosim/Driving-v0", **arguments)
