@@ -2,7 +2,7 @@
 budget, against a random policy, the scripted information baseline and (GainTuning) the oracle.
 
 For each environment and algorithm: the learning curve (mean return of the training
-episodes finished in each tenth of the budget, from SB3's Monitor), then the final mean
+episodes finished in each tenth of the budget, by the task's measure: ``task_reward``), then the final mean
 return over the evaluation seeds (deterministic policy) in the training environment (and,
 for Driving, trained on procedural routes, on ``figure8`` as well) next to
 
@@ -10,14 +10,14 @@ for Driving, trained on procedural routes, on ``figure8`` as well) next to
 * info baseline: AttitudeEstimation, the reference BISO in ``info`` (the return a policy
   answering with it would get), the memoryless accelerometer+magnetometer attitude and the
   residual agent's zero action (gyro dead reckoning from the accelerometer+magnetometer
-  attitude at the start);
+  attitude at the start) and best constant action (a grid of tilt and heading gains);
   GainTuning, the paper's gains as a constant action; Driving, ``PursuitDriver``;
 * GainTuning's oracle: the best constant gains of each episode (``gain_oracle``), and the
   best single constant over the evaluation episodes (from the same grid).
 
 Default hyperparameters of SB3 (``MlpPolicy``) except those of ``biso_cosim.envs.training``
 (AttitudeEstimation's residual agent, with the environment arguments there, explores less at
-the start; GainTuning looks further ahead), observations and rewards normalised by
+the start; Driving looks further ahead), observations and rewards normalised by
 ``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``, wall
 time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip install
 torch==2.13.0`` first on this machine: the local CPU build):
@@ -42,6 +42,16 @@ from biso_cosim.envs.training import algo_options, env_options
 ENVS = {"AttitudeEstimation": "biso_cosim/AttitudeEstimation-v0", "GainTuning": "biso_cosim/GainTuning-v0",
         "Driving": "biso_cosim/Driving-v0"}
 EVALUATION_SEED = 1000  # seeds 1000, 1001, ... (tests/test_envs_tasks.py's)
+CORRECTION_GRID = (0.0, 0.1, 0.3, 1.0)  # AttitudeEstimation's constant corrections: tilt and heading gains
+# (linear, up to a 10 s pull: pulls of no, 100 s, 33 s and 10 s time constant)
+
+
+def task_reward(reward, info):
+    """The step's reward by the task's measure: AttitudeEstimation's and GainTuning's
+    ``reward_attitude`` (minus the attitude error, without the terms that the training options
+    of ``biso_cosim.envs.training`` add for the learner: shaping, the reference copy's error),
+    Driving's reward."""
+    return float(info.get("reward_attitude", reward))
 
 
 def episode_return(env, policy, seed, reset=None):
@@ -51,7 +61,7 @@ def episode_return(env, policy, seed, reset=None):
     total, baseline = 0.0, 0.0
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
-        total += float(reward)
+        total += task_reward(reward, info)
         baseline -= float(info.get("baseline_error_rad", 0.0))
         if terminated or truncated:
             return total, baseline, info
@@ -68,9 +78,23 @@ def baselines(name, env, seeds):
     if name == "AttitudeEstimation":
         out["info baseline: BISO (reference in info)"] = np.mean([r[1] for r in runs])
         if env.unwrapped.action_type == "correction":
+            # the same episodes with linear gains up to a 10 s pull (whatever the training's scale)
+            linear = gym.make(ENVS[name], **{**env.spec.kwargs, "correction_scale": "linear",
+                                             "correction_time_constant_s": 10.0})
             zero = np.zeros(env.action_space.shape, dtype=np.float32)
-            out["zero correction (gyro strapdown)"] = np.mean([episode_return(env, lambda o: zero, s)[0] for s in seeds])
-        absolute = gym.make(ENVS[name], action_type="quaternion")  # (the same episodes, quaternion actions)
+            out["zero correction (gyro strapdown)"] = np.mean([episode_return(linear, lambda o: zero, s)[0]
+                                                               for s in seeds])
+            # the best constant correction over the evaluation episodes: gains of the tilt axes
+            # (x, y) and of the heading axis (z) on a grid (CORRECTION_GRID each: pulls of time
+            # constant 10 s / gain)
+            constants = [np.array([t, t, h], dtype=np.float32) for t in CORRECTION_GRID for h in CORRECTION_GRID]
+            means = [np.mean([episode_return(linear, lambda o, c=c: c, s)[0] for s in seeds]) for c in constants]
+            best = int(np.argmax(means))
+            print(f"    best constant correction: {constants[best].tolist()}", flush=True)
+            out["best constant correction (grid)"] = means[best]
+        # the same episodes (the sensor part of the training options too), quaternion actions
+        own = ("action_type", "correction_time_constant_s", "correction_scale", "shaping_gamma")
+        absolute = gym.make(ENVS[name], **{k: v for k, v in env.spec.kwargs.items() if k not in own})
         am = AccelMagAttitude(absolute)
         out["accel+mag attitude (memoryless)"] = np.mean([episode_return(absolute, am, s, am.reset)[0]
                                                           for s in seeds])
@@ -113,12 +137,16 @@ def train(name, algo, timesteps, seed, n_envs=1, rows=10, checkpoint=None):
     torch.set_num_threads(1)
     curve, returns = [], []
     chunk = max(timesteps // rows, 1)
+    running = np.zeros(n_envs)  # each environment's episode return so far, by the task's measure
 
     class Curve(BaseCallback):
         def _on_step(self) -> bool:
-            for info in self.locals["infos"]:
+            original = self.model.get_env().get_original_reward()  # (VecNormalize scales the ``rewards`` local)
+            for i, info in enumerate(self.locals["infos"]):
+                running[i] += task_reward(original[i], info)
                 if "episode" in info:
-                    returns.append(info["episode"]["r"])
+                    returns.append(running[i])
+                    running[i] = 0.0
             if self.num_timesteps // chunk > len(curve):
                 curve.append((self.num_timesteps, float(np.mean(returns)) if returns else float("nan"), len(returns)))
                 returns.clear()
@@ -178,6 +206,9 @@ def main():
     parser.add_argument("--load-dir", default=None, help="evaluate the models saved there by --save-dir "
                                                          "(checkpoints included) instead of training")
     parser.add_argument("--curve-rows", type=int, default=10, help="rows of the learning curve over the budget")
+    parser.add_argument("--no-baselines", action="store_true", help="evaluate the trained (or loaded) policies "
+                                                                    "only, without the scripted baselines and the "
+                                                                    "oracle (they do not depend on the training)")
     parser.add_argument("--save-dir", default=None, help="directory for the trained models (<env>_<algo>.zip and "
                                                          "its VecNormalize <env>_<algo>_vecnormalize.pkl)")
     args = parser.parse_args()
@@ -196,7 +227,8 @@ def main():
                 print(f"  PPO training steps/s with {n} environment(s): {rate:.0f}", flush=True)
         evaluations = {f"{name}{suffix}": gym.make(ENVS[name], **options)
                        for suffix, options in evaluation_options(name).items()}
-        results = {label: baselines(name, env, seeds) for label, env in evaluations.items()}
+        results = {label: {} if args.no_baselines else baselines(name, env, seeds)
+                   for label, env in evaluations.items()}
         for algo in args.algos:
             if args.load_dir:  # evaluate a saved model (a checkpoint of an earlier run) instead of training
                 import pathlib

@@ -20,6 +20,19 @@ action when noise is added to it (if it does not, a policy gradient has nothing 
 
     python benchmarks/rl_probes.py              # seeds 1000 and 1001, about 6 minutes
     python benchmarks/rl_probes.py --envs AttitudeEstimation --settings "cap 100" --seeds 1000 1001 1002 1003 1004
+
+``--signal`` asks instead whether the reward of each step shows the effect of the exploration
+noise, which is what a policy gradient estimates: a Gaussian policy around a fixed mean, and
+per step the product of the noise ε_t of one action component with the sum of the rewards
+that the action can have moved before the next decision could (AttitudeEstimation: the step's
+own reward, the correction acts at once; GainTuning: the rewards of the steps within the gains'
+lag τ, which carries the action into the gains in force). The probe prints the t statistic
+of the mean product over all steps of the episodes (mean / standard error: |t| > 3 is an
+effect the noise of these episodes does not explain) for the reward the learner is given
+(with the training options of ``biso_cosim.envs.training``) and for the task's measure
+(``reward_attitude``), and the standard deviation of both per step:
+
+    python benchmarks/rl_probes.py --signal --seeds 1000 1001 1002 1003 1004
 """
 
 from __future__ import annotations
@@ -65,6 +78,63 @@ def probes(name):
              **{f"noise 0.14 around {m:g}": (lambda rng, m=m: gaussian([m] * 3, 0.135, rng)) for m in (0.0, 0.5)}})
 
 
+def signal_settings(name):
+    """(label, environment arguments, noise standard deviation, means, component, lag in steps) of
+    the ``--signal`` probe: the training options of ``biso_cosim.envs.training`` and the same
+    without the reward terms they add (shaping, the reference copy) or the task changes."""
+    from biso_cosim.envs.training import env_options
+
+    options = env_options(name)
+    if name == "AttitudeEstimation":
+        linear = {**options, "correction_scale": "linear", "correction_time_constant_s": 10.0}
+        calibrated = {k: v for k, v in linear.items() if k not in ("sensor_profile", "gyro_calibration_s")}
+        calibrated["correction_time_constant_s"] = 100.0  # (the first round's cap)
+        return [("raw part, linear up to a 10 s pull", linear, 0.135, (0.0, 0.3), 2, 1),
+                ("calibrated part, cap 100 s", calibrated, 0.135, (0.0, 0.3), 2, 1)]
+    # the cutoff's component around a cutoff too high (1.7 Hz) and too low (0.012 Hz), r = 0
+    means = ((0.5, -1.0), (-0.5, -1.0))
+    lag = int(round(options.get("control_rate_hz", 50.0)))  # (τ = 1 s of steps)
+    bare = {k: v for k, v in options.items() if k not in ("reference_action", "shaping_gamma")}
+    return [("training options", options, 0.57, means, 0, lag),
+            ("without shaping", {k: v for k, v in options.items() if k != "shaping_gamma"}, 0.57, means, 0, lag),
+            ("without shaping and reference", bare, 0.57, means, 0, lag),
+            ("defaults (50 Hz; 2026-12-07)", {}, 0.57, means, 0, 50)]
+
+
+def signal(name, seeds):
+    """Print the ``--signal`` probe of one task (see the module's docstring)."""
+    print(f"== {name}: t of (noise of one action component) x (rewards it can move), seeds {seeds}", flush=True)
+    for label, kwargs, std, means, component, lag in signal_settings(name):
+        env = gym.make(f"biso_cosim/{name}-v0", **kwargs)
+        shape = env.action_space.shape
+        for mean in means:
+            mean = np.broadcast_to(np.asarray(mean, dtype=float), shape)
+            rng = np.random.default_rng(0)
+            products, given, task = {"given": [], "task": []}, [], []
+            for seed in seeds:
+                env.reset(seed=seed)
+                noise, rewards, measures = [], [], []
+                while True:
+                    eps = rng.normal(0.0, std, shape)
+                    _, reward, terminated, truncated, info = env.step(np.clip(mean + eps, -1.0, 1.0).astype(np.float32))
+                    noise.append(eps[component])
+                    rewards.append(float(reward))
+                    measures.append(float(info["reward_attitude"]))
+                    if terminated or truncated:
+                        break
+                noise = np.array(noise)
+                for key, series in (("given", np.array(rewards)), ("task", np.array(measures))):
+                    ahead = np.convolve(series, np.ones(lag))[lag - 1:]  # sum of series[t:t + lag]
+                    products[key].append(noise * ahead)
+                given += rewards
+                task += measures
+            t = {key: np.concatenate(v) for key, v in products.items()}
+            t = {key: v.mean() / v.std() * np.sqrt(v.size) for key, v in t.items()}
+            print(f"  {label:<36} noise {std:g} around {np.round(mean, 2).tolist()}: t given {t['given']:6.2f}, "
+                  f"task {t['task']:6.2f}; sd per step given {np.std(given):.4g}, task {np.std(task):.4g}",
+                  flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", nargs="+", default=["GainTuning", "AttitudeEstimation"],
@@ -72,7 +142,12 @@ def main():
     parser.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001], help="episode seeds")
     parser.add_argument("--settings", nargs="+", default=None, help="only the environment settings whose label "
                                                                     "starts with one of these (e.g. 'cap 100')")
+    parser.add_argument("--signal", action="store_true", help="the signal probe (see above) instead of the returns")
     args = parser.parse_args()
+    if args.signal:
+        for name in args.envs:
+            signal(name, args.seeds)
+        return
     for name in args.envs:
         settings, policies = probes(name)
         print(f"== {name}: return per seed {args.seeds}", flush=True)

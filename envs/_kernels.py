@@ -19,7 +19,7 @@ from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_contr
 __all__ = ["_scale_observation", "_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
            "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work",
-           "_corrected", "_innovation", "_correction_work"]
+           "_corrected", "_log_gains", "_innovation", "_correction_work", "_mean_error_work"]
 
 _Q0, _Q1 = TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.q_wb + 4  # a packed truth row's q_wb
 
@@ -225,6 +225,14 @@ def _corrected(prior, a, innovation, gain_max, out):
 
 
 @jit
+def _log_gains(a, dt, tau, log_ratio, out):
+    """AttitudeEstimation-v0's correction gains on the logarithmic scale: out_i = 1 − exp(−dt/τ_i),
+    τ_i = tau · exp((1 − a_i)/2 · log_ratio) (a_i = 1: tau; a_i = −1: tau times the ratio)."""
+    for i in range(a.shape[0]):
+        out[i] = -math.expm1(-dt / (tau * math.exp(0.5 * (1.0 - a[i]) * log_ratio)))
+
+
+@jit
 def _innovation(prior, f, m, cdh, sdh, out):
     """The rotation vector (body axes, rad) from ``prior`` (unit) to the accelerometer+magnetometer
     attitude of the specific force f and field m (TRIAD, declination D: cdh, sdh = cos(D/2),
@@ -401,3 +409,14 @@ def _correction_work(samples, q, arrays):
     c = arrays[3]
     _correction_period(arrays[0], samples.gyro_b, samples.accel_b, samples.mag_b, samples.mag_fresh, q[0][:k],
                        arrays[1], arrays[2], c[0], c[1], c[2], arrays[4], arrays[5])
+
+
+@jit
+def _mean_error_work(samples, q, arrays):
+    """One estimator's angle to the truth over the period's samples (q: its; arrays: (errors
+    (2,),)): the mean into errors[0] and the newest sample's into errors[1], when the period has
+    samples (GainTuning-v0's reference copy)."""
+    k = samples.gyro_b.shape[0]
+    if k:
+        arrays[0][0] = _mean_angle(q[0][:k], samples.truth[:, _Q0:_Q1])
+        arrays[0][1] = _angle(q[0][k - 1], samples.truth[k - 1, _Q0:_Q1])

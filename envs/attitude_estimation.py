@@ -13,7 +13,7 @@ from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.loop import PeriodWork
 from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
 from biso_cosim.envs._docs import finish_docstring
-from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work, _corrected, _correction_work
+from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work, _corrected, _correction_work, _log_gains
 from biso_cosim.frames import quat_from_euler
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
@@ -24,6 +24,10 @@ _ACTION_TYPES = ("quaternion", "euler", "correction")
 _QUATERNION_SCALES = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
 _INNOVATION_SCALES = {c: Scale(1.0, -math.pi, math.pi, "rad") for c in "xyz"}
 _FULL_CORRECTION = np.ones(3)  # gains of 1 with a gain_max of 1: the whole innovation
+_CORRECTION_SCALES = ("linear", "log")
+CORRECTION_LOG_RATIO = 1000.0
+"""With ``correction_scale="log"``: the ratio of the longest pull time constant (action −1) to
+the shortest (action 1, ``correction_time_constant_s``)."""
 
 
 class AttitudeEstimationEnv(CosimEnv, EzPickle):
@@ -69,7 +73,11 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     the car drives straight at constant speed). The range stops at τ rather than at the
     memoryless attitude so that an exploring policy's noise does not pull the estimate to
     the accelerometer+magnetometer attitude whatever its mean (`docs/envs.md`, "Why PPO did
-    not learn").
+    not learn"). With `correction_scale="log"` each component sets the time constant of its
+    pull on a logarithmic scale instead, τ_i = τ · 1000^((1 − a_i)/2) (a_i = 1: τ, 0: 31.6 τ,
+    −1: 1000 τ), gain 1 − exp(−dt/τ_i): every action pulls, the zero action at the middle of
+    three decades (as GainTuning's cutoff), and an exploring policy's noise scales the pull by
+    a factor rather than switching it on and off at a = 0.
 
     ## Observation Space
     A bounded `Box(low, high, (9·n + 4,), float32)` (`9·n + 7` with `action_type="correction"`;
@@ -120,10 +128,25 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     the rotation angle between the agent's estimate and the true attitude at the newest
     sample of the observation the agent acted on (in [−π, 0]).
 
-    `info` carries the reward term and, for the same instant: `t_s` (s), `q_wb_true`,
+    With `shaping_gamma=γ` (only with `action_type="correction"`) a potential-based shaping
+    term (Ng, Harada and Russell 1999) joins it: *reward* = *reward_attitude* +
+    *reward_shaping*, *reward_shaping* = γΦ(s') − Φ(s) with the potential Φ = −p/(1 − γ),
+    p the angle between the prior (`prior_q_wb`, the agent's previous estimate propagated
+    with the gyro) and the true attitude at the newest sample of the observation. With the
+    same γ as the learner's discount it changes no policy's discounted return but by the
+    first state's potential, which no action moves, so the best policies stay the task's;
+    what changes is the reward each step carries: the error this step's correction removed,
+    (p − e)/(1 − γ), less the error the gyro adds before the next prior, where without it
+    each step carries the error level inherited from all earlier steps (`docs/envs.md`,
+    "Why PPO did not learn"). The task's measure stays *reward_attitude* (its sum is the
+    return the docs tabulate).
+
+    `info` carries the reward terms and, for the same instant: `t_s` (s), `q_wb_true`,
     `q_wb_baseline`, `error_rad` (= −reward), `baseline_error_rad`, and `distance_m` (the
-    car's progress along the route, m). `info` at reset has the same state keys for the first
-    observation plus `episode_seed`, `sensor_seed`, `route_seed`, `route` (and `gnss_seed`).
+    car's progress along the route, m); with corrections also `prior_error_rad` (the next
+    prior's angle to the truth, p of the next step). `info` at reset has the same state keys
+    for the first observation plus `episode_seed`, `sensor_seed`, `route_seed`, `route` (and
+    `gnss_seed`; with corrections `prior_error_rad`).
 
     ## Starting State
     The car stands at the start of the route, settled on its suspension, brakes on; the
@@ -149,7 +172,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
     ## Version History
     * v0: Initial version: scripted driver on library or procedural routes, MPU-9250 at its
       register-defined rate, optional GNSS receiver, BISO reference in `info`;
-      `action_type="correction"` added (2026-12-07).
+      `action_type="correction"` added (2026-12-07); `shaping_gamma`, `correction_scale` added (2026-12-07).
     """
 
     ARGUMENTS = {
@@ -163,12 +186,19 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         "correction_time_constant_s": 'with `action_type="correction"`: the time constant τ of the pull towards the '
                                       "accelerometer+magnetometer attitude at gains of 1, s (a gain of 1 turns the "
                                       "fraction 1 − exp(−dt/τ) of the innovation each step; 0: all of it)",
+        "correction_scale": 'with `action_type="correction"`: `"linear"` (gains max(a, 0), 0 or less: no pull) or '
+                            '`"log"` (pull time constants from `correction_time_constant_s` at a = 1 to 1000 times it '
+                            "at a = −1, logarithmically; see Action Space)",
+        "shaping_gamma": 'with `action_type="correction"`: γ of the potential-based shaping term γΦ(s\') − Φ(s), '
+                         "Φ = −(the prior's angle to the truth)/(1 − γ), added to the reward (see Rewards; use the "
+                         "learner's discount); None: no shaping",
     }
     ACTION_NAMES = ("w", "x", "y", "z")
 
     def __init__(self, *, route: str | Route = "figure8", action_type: str = "quaternion", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None, observe_baseline: bool = False,
-                 correction_time_constant_s: float = 1.0,
+                 correction_time_constant_s: float = 1.0, correction_scale: str = "linear",
+                 shaping_gamma: float | None = None,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = DEFAULT_SENSOR_PROFILE, sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -185,6 +215,21 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self.correction_time_constant_s = _check_number("correction_time_constant_s", correction_time_constant_s,
                                                         low=0.0, high=3600.0)
         """The time constant of the pull of gains of 1 towards the accelerometer+magnetometer attitude, s."""
+        if correction_scale not in _CORRECTION_SCALES:
+            raise ValueError(f"correction_scale must be one of {_CORRECTION_SCALES}, got {correction_scale!r}")
+        if correction_scale == "log" and self.correction_time_constant_s == 0.0:
+            raise ValueError('correction_scale="log" needs correction_time_constant_s > 0 (its shortest pull)')
+        self.correction_scale = correction_scale
+        """How a correction action maps onto its gains: "linear" or "log" (see Action Space)."""
+        if shaping_gamma is not None:
+            if action_type != "correction":
+                raise ValueError(f'shaping_gamma needs action_type="correction" (its potential is the prior\'s '
+                                 f"error), got action_type={action_type!r}")
+            shaping_gamma = _check_number("shaping_gamma", shaping_gamma, low=0.0, high=1.0)
+            if shaping_gamma >= 1.0:
+                raise ValueError(f"shaping_gamma must be < 1 (the potential is −error/(1 − γ)), got {shaping_gamma!r}")
+        self.shaping_gamma = shaping_gamma
+        """γ of the potential-based shaping term (None: none)."""
         spec = EstimatorSpec(estimator, dict(estimator_params or {}), label="baseline")
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=(spec,))
         self.action_type = action_type
@@ -218,9 +263,11 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         self._q = np.empty(4)  # a correction action's attitude
         tau = self.correction_time_constant_s
         self._gain_max = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0  # (the fraction a gain of 1 turns)
+        self._gains = np.empty(3)  # a log-scale action's gains
         # the newest reference estimate (in the observation when observed)
         self._baseline_q = self._observation_parts.get("baseline_q_wb", np.empty(4))
         self._baseline_q[:] = (1.0, 0.0, 0.0, 0.0)
+        self._prior_error = 0.0  # the prior's angle to the truth (the shaping's potential, set at reset)
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -233,6 +280,8 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             _corrected(self._prior_q, _FULL_CORRECTION, self._innovation, 1.0, self._prior_q)
             self._innovation[:] = 0.0
         info.update(self._state_info())
+        if self.action_type == "correction":
+            self._prior_error = info["prior_error_rad"] = _angle(self._prior_q, info["q_wb_true"])
         info["baseline_error_rad"] = _angle(info["q_wb_baseline"], info["q_wb_true"])
         return self._observation(), info
 
@@ -248,6 +297,15 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         norm = math.copysign(math.sqrt(w * w + x * x + y * y + z * z), w if w != 0.0 else 1.0)
         self._estimate_q[:] = (w / norm, x / norm, y / norm, z / norm)
         self._advance()
+        if self.action_type == "correction":  # the next prior's error: the next state's potential
+            prior_error = _angle(self._prior_q, self._newest_row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4])
+            info["prior_error_rad"] = prior_error
+            if self.shaping_gamma is not None:
+                gamma = self.shaping_gamma
+                shaping = (self._prior_error - gamma * prior_error) / (1.0 - gamma)
+                info["reward_shaping"] = shaping
+                reward = reward + shaping
+            self._prior_error = prior_error
         truncated = self._truncated
         self._end_if(False, truncated)
         return self._observation(), reward, False, truncated, info
@@ -261,7 +319,11 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
         """The attitude of a checked action as a quaternion of any non-zero length (the angle
         kernel normalises, so an action equal to an estimate scores exactly its error)."""
         if self.action_type == "correction":
-            _corrected(self._prior_q, a, self._innovation, self._gain_max, self._q)
+            if self.correction_scale == "log":
+                _log_gains(a, self.dt, self.correction_time_constant_s, math.log(CORRECTION_LOG_RATIO), self._gains)
+                _corrected(self._prior_q, self._gains, self._innovation, 1.0, self._q)
+            else:
+                _corrected(self._prior_q, a, self._innovation, self._gain_max, self._q)
             return self._q
         if self.action_type == "euler":
             return quat_from_euler(a[0], a[1], a[2])

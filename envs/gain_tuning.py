@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -16,7 +16,7 @@ from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_nu
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angles_to, _tune_closed, _tuning_work
+from biso_cosim.envs._kernels import _angle, _angles_to, _mean_error_work, _tune_closed, _tuning_work
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -148,7 +148,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
     out-of-bounds values are clipped (or refused with `action_bounds="raise"`).
 
     ## Observation Space
-    A bounded `Box(low, high, (9·n + 4 + m,), float32)` (`+9` with GNSS), scaled as in
+    A bounded `Box(low, high, (9·n + 4 + m,), float32)` (`9·n + m` with `observe_attitude=False`;
+    `+9` with GNSS), scaled as in
     `AttitudeEstimation-v0` (`observation_fields`, `observation_scale`, `split_observation`),
     in this order (`env.unwrapped.observation_structure`):
 
@@ -156,16 +157,36 @@ class GainTuningEnv(CosimEnv, EzPickle):
       `AttitudeEstimation-v0` (gyro in rad/s, accelerometer in g, magnetometer in 50 µT; the
       flags `mag_fresh` and `new` where they are not constant);
     - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix as in `AttitudeEstimation-v0`;
-    - *q_wb (4):* the tuned estimator's attitude at the newest sample;
+    - *q_wb (4), unless `observe_attitude=False`:* the tuned estimator's attitude at the
+      newest sample;
     - *gains (m):* the gains in force, as the normalised action that sets them.
+
+    `observe_attitude=False` leaves the attitude out: its heading changes with the route and
+    says nothing about which gains are right, and a policy trained on few episodes fits its
+    gains to it (`docs/envs.md`, "Why PPO did not learn").
 
     ## Rewards
     The total reward is: ***reward*** *=* *reward_attitude* *=* −(mean over the step's IMU
     samples of ∠(q_tuned, q_true)) in rad: the error of the estimate the gains set by the
     action produced during this step.
 
-    `info` carries the reward term and `error_rad` (= −reward), `baseline_error_rad` (the
-    same mean for the fixed-gain copy), `params` (the tuned values in force, with the cross-link
+    With `reference_action` a third copy of the estimator runs on the same samples with the
+    constant gains of that normalised action, and its error joins the reward: *reward* =
+    *reward_attitude* + *reward_reference*, *reward_reference* = +(its mean error over the
+    step's samples). No action changes that copy, so each episode's return moves by the same
+    amount for every policy and the best policies stay the task's; what it removes from each
+    step's reward is the part of the error that the route's turns and the sensor part cause
+    at any nearby gains (`docs/envs.md`). With `shaping_gamma=γ` a potential-based shaping
+    term (Ng, Harada and Russell 1999) joins it, *reward_shaping* = γΦ(s') − Φ(s), Φ = −d/(1 − γ),
+    d the tuned copy's angle to the truth at the newest sample (less the reference copy's, with
+    `reference_action`; `info["potential_error_rad"]`): the error level a step inherits, which
+    no action of the step moves, is exchanged for the change of the error the gains in force
+    make in the step; with the learner's discount γ no policy's discounted return changes but
+    by the first state's potential. The task's measure stays *reward_attitude*.
+
+    `info` carries the reward terms and `error_rad` (= −reward_attitude), `baseline_error_rad`
+    (the same mean for the fixed-gain copy; `reference_error_rad` for the reference copy),
+    `params` (the tuned values in force, with the cross-link
     ratio also k and k_p), and at the newest sample `t_s`, `q_wb_true`, `q_wb_tuned`,
     `q_wb_baseline`.
 
@@ -185,7 +206,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
     {arguments}
 
     ## Version History
-    * v0: Initial version; the gains' lag (`gain_time_constant_s`) added (2026-12-07).
+    * v0: Initial version; the gains' lag (`gain_time_constant_s`) added (2026-12-07);
+      `reference_action`, `observe_attitude` and `shaping_gamma` added (2026-12-07).
     """
 
     ARGUMENTS = {
@@ -199,13 +221,21 @@ class GainTuningEnv(CosimEnv, EzPickle):
         "gain_time_constant_s": "time constant τ of the gains' lag, s: after the episode's first action each "
                                 "action moves the gains in force (normalised) by 1 − exp(−dt/τ) of the way "
                                 "towards it; 0: each action sets them",
+        "reference_action": "None, or the normalised action (one entry per tuned parameter, in [-1, 1]) of a third "
+                            "copy of the estimator at constant gains whose mean error over each step is added to "
+                            "the reward (see Rewards)",
+        "observe_attitude": "include the tuned estimator's attitude (`q_wb`) in the observation",
+        "shaping_gamma": "γ of the potential-based shaping term γΦ(s') − Φ(s), Φ = −(the tuned copy's angle to the "
+                         "truth at the newest sample, less the reference copy's with `reference_action`)/(1 − γ), "
+                         "added to the reward (see Rewards; use the learner's discount); None: no shaping",
     }
 
     def __init__(self, *, route: str | Route = "random", estimator: str = "biso",
                  estimator_params: Mapping[str, Any] | None = None,
                  tuning: Mapping[str, tuple[float, float, str]] | None = None,
                  die_temperature_c: float | tuple[float, float] | None = (5.0, 45.0),
-                 gain_time_constant_s: float = 1.0,
+                 gain_time_constant_s: float = 1.0, reference_action: Sequence[float] | None = None,
+                 observe_attitude: bool = True, shaping_gamma: float | None = None,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = "mpu9250", sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -232,7 +262,20 @@ class GainTuningEnv(CosimEnv, EzPickle):
         clash = sorted(set(fixed) & (set(self.tuning) | ({"k", "k_p"} if CROSS_LINK_RATIO in self.tuning else set())))
         if clash:
             raise ValueError(f"estimator_params {clash} are tuned by the action; remove them")
+        if not isinstance(observe_attitude, (bool, np.bool_)):
+            raise TypeError(f"observe_attitude must be True or False, got {observe_attitude!r}")
+        self.observe_attitude = bool(observe_attitude)
+        self.reference_action = None if reference_action is None else self._check_reference(reference_action)
+        """The normalised action of the reference copy (None: no reference copy)."""
+        if shaping_gamma is not None:
+            shaping_gamma = _check_number("shaping_gamma", shaping_gamma, low=0.0, high=1.0)
+            if shaping_gamma >= 1.0:
+                raise ValueError(f"shaping_gamma must be < 1 (the potential is −error/(1 − γ)), got {shaping_gamma!r}")
+        self.shaping_gamma = shaping_gamma
+        """γ of the potential-based shaping term (None: none)."""
         specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
+        if self.reference_action is not None:  # (its gains are set at reset, as the tuned copy's)
+            specs += (EstimatorSpec(estimator, fixed, label="reference"),)
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=specs)
         tau = self.gain_time_constant_s
         self._lag = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0
@@ -252,9 +295,11 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._closed_values = np.empty(len(names) + 2)  # (the action's values, then k, k_p)
         m = len(self.tuning)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float32)
-        self._raw_structure.update(q_wb=(4,), gains=(m,))
-        self._raw_scales.update(q_wb={c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"},
-                                gains={name: Scale(1.0, -1.0, 1.0, "-") for name in self.tuning})
+        if self.observe_attitude:
+            self._raw_structure["q_wb"] = (4,)
+            self._raw_scales["q_wb"] = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
+        self._raw_structure["gains"] = (m,)
+        self._raw_scales["gains"] = {name: Scale(1.0, -1.0, 1.0, "-") for name in self.tuning}
         self._set_observation_space()
         baseline = self._sim.estimators["baseline"].params
         self._reading = getattr(baseline, "reading", None)  # BISO's (fixed by estimator_params)
@@ -263,8 +308,13 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._initial = {name: getattr(baseline, name) for name in names}
         self._initial_gains = self._normalise(self._tuned_values(baseline))
         self._check_corners(fixed)
+        self._reference_changes = (None if self.reference_action is None else
+                                   self.estimator_changes(self.params_from_action(self.reference_action)))
+        self._reference_error = np.zeros(2)  # the reference copy's mean and newest error in the last period
+        self._reference_pending = False  # its gains are set with the episode's first action
+        self._potential_error = 0.0  # the shaping's potential error (set at reset)
         # the gains in force (normalised) and the tuned copy's newest estimate: in the observation
-        self._gains, self._tuned_q = self._observation_parts["gains"], self._observation_parts["q_wb"]
+        self._gains, self._tuned_q = self._observation_parts["gains"], self._observation_parts.get("q_wb", np.empty(4))
         self._gains[:] = self._initial_gains
         self._tuned_q[:] = (1.0, 0.0, 0.0, 0.0)
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
@@ -272,6 +322,18 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._baseline_q = self._tuned_q.copy()
         self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
         self._period_samples = np.zeros(1, dtype=np.int64)  # the last period's number of samples
+
+    def _check_reference(self, value: Any) -> np.ndarray:
+        """``reference_action``: finite numbers in [-1, 1], one per tuned parameter (ValueError)."""
+        m = len(self.tuning)
+        try:
+            a = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            a = None
+        if a is None or a.shape != (m,) or not np.all(np.abs(a) <= 1.0):  # (NaN fails too)
+            raise ValueError(f"reference_action must be None or {m} numbers in [-1, 1] (one per tuned parameter: "
+                             f"{list(self.tuning)}), got {value!r}")
+        return a
 
     def _tuned_values(self, params: Any) -> dict[str, float]:
         """The tuned parameters' values in an estimator's parameter record."""
@@ -371,6 +433,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
         info["die_temperature_c"] = float(self._sim.imu.profile.si("temperature.default"))
         tuned = self._sim.estimators["tuned"]
         tuned.set_params(**self._initial)  # Estimator.reset keeps parameters
+        if self._reference_changes is not None:  # (as the tuned copy: the baseline's gains until the first step)
+            self._sim.estimators["reference"].set_params(**self._initial)
+            self._sim.attach(PeriodWork(_mean_error_work, (self._reference_error,), ("reference",)))
+            self._reference_pending = True
         # The coefficients the actions' gains are written into while they stay these: BISO's
         # closed form tuned by f_c > 0 and r alone (valid at the box's corners, so k > 0 and
         # k_p >= 0 inside; any other tuned parameter takes set_params)
@@ -381,6 +447,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._first_period()
         info.update(self._measure())
         info["params"] = self._params_in_force()
+        if self.shaping_gamma is not None:
+            self._potential_error = info["potential_error_rad"]
         return self._observation(), info
 
     @property
@@ -404,11 +472,22 @@ class GainTuningEnv(CosimEnv, EzPickle):
             if a.tolist() != self._gains.tolist():  # (lists: np.array_equal costs tens of µs in the loop)
                 self._set_gains(a)
         self._step_lag = self._lag
+        if self._reference_pending:  # the reference copy: the tuned copy under the constant reference action
+            self._sim.estimators["reference"].retune(**self._reference_changes)
+            self._reference_pending = False
         self._advance()
         info = self._measure()
         info["params"] = self._params_in_force()
         reward = -info["error_rad"]
         info["reward_attitude"] = reward
+        if self._reference_changes is not None:
+            info["reward_reference"] = info["reference_error_rad"]
+            reward = reward + info["reference_error_rad"]
+        if self.shaping_gamma is not None:
+            gamma = self.shaping_gamma
+            info["reward_shaping"] = (self._potential_error - gamma * info["potential_error_rad"]) / (1.0 - gamma)
+            reward = reward + info["reward_shaping"]
+            self._potential_error = info["potential_error_rad"]
         truncated = self._truncated
         self._end_if(False, truncated)
         return self._observation(), reward, False, truncated, info
@@ -468,9 +547,17 @@ class GainTuningEnv(CosimEnv, EzPickle):
             error, baseline_error = self._errors.tolist()
         else:  # no sample this step (ODR below the control rate): the newest estimate stands
             error, baseline_error = _angles_to(self._tuned_q, self._baseline_q, q_true)
-        return {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(newest[0]),
-                "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(),
-                "q_wb_baseline": self._baseline_q.copy()}
+        out = {"error_rad": error, "baseline_error_rad": baseline_error, "t_s": float(newest[0]),
+               "q_wb_true": q_true.copy(), "q_wb_tuned": self._tuned_q.copy(), "q_wb_baseline": self._baseline_q.copy()}
+        if self._reference_changes is not None:
+            if not self._period_samples[0]:  # (as above: the reference copy's newest estimate stands)
+                self._reference_error[:] = _angle(self._sim.estimators["reference"].get_state().q_wb, q_true)
+            out["reference_error_rad"] = float(self._reference_error[0])
+        if self.shaping_gamma is not None:  # the potential's error: the newest sample's
+            newest_error = _angle(self._tuned_q, q_true)
+            out["potential_error_rad"] = (newest_error if self._reference_changes is None
+                                          else newest_error - float(self._reference_error[1]))
+        return out
 
 
 def _biso_gains_of(params: Any) -> dict[str, Any]:

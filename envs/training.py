@@ -12,28 +12,44 @@ from typing import Any
 __all__ = ["ENV_OPTIONS", "ALGO_OPTIONS", "algo_options", "env_options"]
 
 ENV_OPTIONS: dict[str, dict[str, Any]] = {
-    "AttitudeEstimation": {"action_type": "correction", "correction_time_constant_s": 100.0},
+    "AttitudeEstimation": {"action_type": "correction", "sensor_profile": "mpu9250", "gyro_calibration_s": 2.0,
+                           "correction_scale": "log", "shaping_gamma": 0.99},
+    "GainTuning": {"control_rate_hz": 10.0, "reference_action": (0.0, 0.0), "observe_attitude": False,
+                   "shaping_gamma": 0.99},
     "Driving": {"route": "random"},
 }
-"""Environment arguments besides the defaults: AttitudeEstimation's agent corrects its
-gyro-propagated estimate (the residual formulation) with gains up to the pull of a 100 s time
-constant: on the default calibrated part the best constant pull is about 1/200 s
-(`benchmarks/rl_probes.py`), half this range, where with the default 1 s it would be 0.5 % of
-the range and the exploration noise alone would pull harder; the driving agent trains on a new
-procedural route every episode (it is evaluated there and on ``figure8``, which it never
-drove in training)."""
+"""Environment arguments besides the defaults (docs/envs.md, "Why PPO did not learn" and "What
+the second round changed", gives the evidence for each):
+
+* AttitudeEstimation: the residual agent (``action_type="correction"``) on a raw MPU-9250 part
+  after its start-up gyro calibration (``sensor_profile="mpu9250"``, ``gyro_calibration_s=2``:
+  the calibrated default part's gyro drifts so little in an episode that no correction is
+  worth more than a few per cent, concentrated in one episode of five; the raw part's scale
+  factors and misalignments make the correction worth a third of the error), the pulls' time
+  constants on a logarithmic scale (``correction_scale="log"``: 1 s to 1000 s, the zero action
+  31.6 s, near the best constant pulls of 33 s in heading and 100 s in tilt, so that the
+  policy's mean starts at a good estimator and its noise scales the pull instead of switching it
+  off below a = 0), and the potential-based shaping with the learner's γ = 0.99
+  (``shaping_gamma``: each step's reward then shows its own correction instead of the error level
+  inherited from all earlier steps).
+* GainTuning: decisions at 10 Hz (``control_rate_hz``: the gains act over seconds), the
+  reference copy at the zero action's gains (``reference_action``: the part of each step's
+  error any nearby tuning shares), the attitude out of the observation (``observe_attitude``:
+  its heading says nothing about the gains, and the trained policies fitted them to it) and the
+  shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
+* Driving: a new procedural route every episode (it is evaluated there and on ``figure8``,
+  which it never drove in training).
+"""
 
 ALGO_OPTIONS: dict[str, dict[str, Any]] = {
     "AttitudeEstimation": {"policy_kwargs": {"log_std_init": -2.0}},
-    "GainTuning": {"gamma": 0.999},
     "Driving": {"gamma": 0.995},
 }
 """Hyperparameters besides SB3's defaults: AttitudeEstimation's residual policy starts with
 exploration noise of standard deviation e^-2 = 0.14 instead of 1, as residual policies do
 (Silver et al. 2018, Johannink et al. 2019), so that its training episodes stay near the
-estimator its zero action is; GainTuning discounts with γ = 0.999 (a horizon of 1000 steps,
-20 s) instead of 0.99 (2 s): the gains' effects (the gyro's drift under too little correction,
-the cross-link's bias estimate) play out over seconds to tens of seconds; Driving with
+estimator its zero action is; GainTuning takes SB3's defaults (its γ = 0.99 is 10 s at its
+10 Hz decisions, over which the gains' effects play out, and the shaping's γ); Driving with
 γ = 0.995 (4 s, about 30 m of road at the pursuit driver's speed) instead of 0.99 (2 s,
 less than the distance a fast car needs to slow for a turn). ``VecNormalize``
 scales the rewards with the same γ."""

@@ -28,13 +28,15 @@ ARGUMENT_SETS = {
          "gnss_rate_hz": 5.0},
         # rates that do not divide: 200 Hz ODR, 80 Hz steps (2 or 3 samples a step, 3 slots)
         {"control_rate_hz": 80.0, "physics_rate_hz": 2000.0},
-        # the residual agent: corrections of its gyro-propagated estimate
-        {"action_type": "correction"},
+        # the residual agent: corrections of its gyro-propagated estimate, with the shaping term
+        {"action_type": "correction", "shaping_gamma": 0.99, "correction_scale": "log"},
     ],
     "biso_cosim/GainTuning-v0": [
         {},
-        {"estimator": "biso_plus"},
-        {"tuning": {"cutoff_hz": (0.02, 5.0, "log")}, "registers": {"smplrt_div": 9}},
+        {"estimator": "biso_plus", "reference_action": (0.2, -0.3, 0.1), "shaping_gamma": 0.99},
+        # (a 100 Hz ODR: 2 samples a step; the reference copy and no attitude in the observation)
+        {"tuning": {"cutoff_hz": (0.02, 5.0, "log")}, "registers": {"smplrt_div": 9}, "reference_action": (0.5,),
+         "observe_attitude": False},
     ],
     "biso_cosim/Driving-v0": [
         {},

@@ -180,6 +180,69 @@ def test_the_zero_correction_beats_the_memoryless_attitude_and_full_correction_i
         assert run_episode(default, lambda o: np.zeros(3), seed)[0] > filtered > reference
 
 
+@pytest.mark.parametrize("a", [1.0, 0.0, -0.4, -1.0])
+def test_log_scale_corrections_pull_with_their_time_constant(a):
+    """``correction_scale="log"``: a constant action a pulls as the linear scale's gains of 1
+    with the time constant τ · 1000^((1 − a)/2) (a = 1: τ; a = −1: 1000 τ)."""
+    tau = 2.0
+    log = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_scale="log",
+                   correction_time_constant_s=tau, **SHORT)
+    linear = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction",
+                      correction_time_constant_s=tau * 1000.0 ** (0.5 * (1.0 - a)), **SHORT)
+    log.reset(seed=8)
+    linear.reset(seed=8)
+    for _ in range(40):
+        _, reward, *_ = log.step(np.full(3, a))
+        _, linear_reward, *_ = linear.step(np.ones(3))
+        assert reward == pytest.approx(linear_reward, rel=1e-9)
+    with pytest.raises(ValueError, match="correction_scale"):
+        gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_scale="square")
+    with pytest.raises(ValueError, match="correction_time_constant_s > 0"):
+        gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", correction_scale="log",
+                 correction_time_constant_s=0.0)
+
+
+def test_the_shaping_term_is_the_change_of_the_priors_potential():
+    """``shaping_gamma``: the reward is ``reward_attitude`` plus γΦ(s') − Φ(s), Φ = −p/(1 − γ), p
+    the prior's angle to the true attitude at the newest sample (``prior_error_rad``: checked
+    against the observed prior and the next step's truth); the discounted sum of the shaping
+    terms is then Φ's change over the episode, (p_0 − γ^T p_T)/(1 − γ), whatever the actions."""
+    gamma = 0.9
+    env = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", shaping_gamma=gamma, **SHORT)
+    plain = gym.make("biso_cosim/AttitudeEstimation-v0", action_type="correction", **SHORT)
+    core = env.unwrapped
+    rng = np.random.default_rng(2)
+    _, info = env.reset(seed=4)
+    plain.reset(seed=4)
+    first = p = info["prior_error_rad"]
+    assert p == quat_angle_between(core.physical_observation()["prior_q_wb"], info["q_wb_true"])
+    discounted, t = 0.0, 0
+    while True:
+        prior = core.physical_observation()["prior_q_wb"]
+        assert p == quat_angle_between(prior, _newest_q_wb(core))
+        action = rng.uniform(-0.5, 1.0, 3)
+        _, reward, _, truncated, info = env.step(action)
+        _, plain_reward, _, _, plain_info = plain.step(action)
+        assert info["reward_attitude"] == plain_reward == plain_info["reward_attitude"]  # (the same task)
+        shaping = info["reward_shaping"]
+        assert reward == info["reward_attitude"] + shaping
+        assert shaping == pytest.approx((p - gamma * info["prior_error_rad"]) / (1.0 - gamma), rel=1e-12)
+        discounted += gamma ** t * shaping
+        p, t = info["prior_error_rad"], t + 1
+        if truncated:
+            break
+    assert discounted == pytest.approx((first - gamma ** t * p) / (1.0 - gamma), rel=1e-9)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [({"shaping_gamma": 0.99}, "action_type"),
+                                                 ({"action_type": "correction", "shaping_gamma": 1.0}, "< 1"),
+                                                 ({"action_type": "correction", "shaping_gamma": float("nan")}, "finite"),
+                                                 ({"action_type": "correction", "shaping_gamma": -0.5}, ">= 0")])
+def test_bad_shaping_is_refused(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("biso_cosim/AttitudeEstimation-v0", **kwargs)
+
+
 @pytest.mark.parametrize(("control_rate_hz", "physics_rate_hz"), [(50.0, 1000.0), (80.0, 2000.0), (40.0, 1000.0)])
 def test_observation_holds_the_sensor_stream_exactly(control_rate_hz, physics_rate_hz):
     """The IMU rows are the co-simulation's samples, newest last, with `new` marking the
@@ -341,6 +404,89 @@ def test_gain_tuning_reward_is_the_mean_error_over_the_step():
         for angle in quat_angle_between(tuned, truth.q_wb):
             total += angle
         assert reward == -total / len(tuned) == info["reward_attitude"] == -info["error_rad"]
+
+
+def test_the_reference_copy_is_the_tuned_copy_under_the_reference_action():
+    """``reference_action``: a third copy runs the constant gains of that action from the
+    episode's first step (before it, as the tuned copy, the baseline's), and its mean error over
+    each step joins the reward (``reward_reference``): a policy that plays the reference action
+    earns exactly 0 every step and the task's measure of it; any other earns the difference."""
+    reference = np.array([0.25, -0.5])
+    env = gym.make("biso_cosim/GainTuning-v0", reference_action=reference, **SHORT)
+    plain = gym.make("biso_cosim/GainTuning-v0", **SHORT)
+    for actions in ([reference] * 30, np.random.default_rng(0).uniform(-1.0, 1.0, (30, 2))):
+        env.reset(seed=6)
+        plain.reset(seed=6)
+        for i, action in enumerate(actions):
+            _, reward, _, _, info = env.step(action)
+            _, plain_reward, _, _, plain_info = plain.step(action)
+            assert info["reward_attitude"] == plain_reward == -info["error_rad"]  # (the same task)
+            assert reward == info["reward_attitude"] + info["reward_reference"]
+            assert info["reward_reference"] == info["reference_error_rad"] > 0.0
+            if actions[0] is reference:
+                assert reward == 0.0
+            elif i > 0:
+                assert reward != 0.0
+
+
+def test_gain_tuning_shaping_is_the_change_of_the_relative_errors_potential():
+    """``shaping_gamma`` in GainTuning: the reward is the task's term, the reference copy's and
+    γΦ(s') − Φ(s), Φ = −(the tuned copy's angle to the truth at the newest sample, less the
+    reference copy's)/(1 − γ) (``potential_error_rad``: checked against both copies' newest
+    estimates); its discounted sum is Φ's change over the episode."""
+    gamma = 0.95
+    env = gym.make("biso_cosim/GainTuning-v0", reference_action=(0.0, 0.0), shaping_gamma=gamma, **SHORT)
+    core = env.unwrapped
+    _, info = env.reset(seed=5)
+    first = p = info["potential_error_rad"]
+    rng = np.random.default_rng(1)
+    discounted, t = 0.0, 0
+    while True:
+        _, reward, _, truncated, info = env.step(rng.uniform(-1.0, 1.0, 2))
+        reference_q = core.sim.estimators["reference"].get_state().q_wb
+        newest = quat_angle_between(info["q_wb_tuned"], info["q_wb_true"])
+        assert info["potential_error_rad"] == pytest.approx(
+            newest - quat_angle_between(reference_q, info["q_wb_true"]), abs=1e-12)
+        assert reward == info["reward_attitude"] + info["reward_reference"] + info["reward_shaping"]
+        assert info["reward_shaping"] == pytest.approx((p - gamma * info["potential_error_rad"]) / (1.0 - gamma),
+                                                       rel=1e-12, abs=1e-15)
+        discounted += gamma ** t * info["reward_shaping"]
+        p, t = info["potential_error_rad"], t + 1
+        if truncated:
+            break
+    assert discounted == pytest.approx((first - gamma ** t * p) / (1.0 - gamma), rel=1e-9, abs=1e-12)
+    with pytest.raises(ValueError, match="shaping_gamma"):
+        gym.make("biso_cosim/GainTuning-v0", shaping_gamma=1.0)
+
+
+@pytest.mark.parametrize("value", [(0.0,), (0.0, 1.5), (float("nan"), 0.0), "0 0"])
+def test_bad_reference_actions_are_refused(value):
+    with pytest.raises(ValueError, match="reference_action"):
+        gym.make("biso_cosim/GainTuning-v0", reference_action=value)
+
+
+def test_the_attitude_can_be_left_out_of_the_observation():
+    """``observe_attitude=False``: the observation is the default one without the tuned
+    estimate's attitude (the same columns otherwise, the same episode)."""
+    full = gym.make("biso_cosim/GainTuning-v0", **SHORT)
+    without = gym.make("biso_cosim/GainTuning-v0", observe_attitude=False, **SHORT)
+    assert "q_wb" not in without.unwrapped.observation_structure
+    kept = [i for i, f in enumerate(full.unwrapped.observation_fields) if not f.startswith("q_wb.")]
+    assert [full.unwrapped.observation_fields[i] for i in kept] == list(without.unwrapped.observation_fields)
+    assert len(kept) == len(full.unwrapped.observation_fields) - 4
+    for a, b in zip(rollout_observations(full), rollout_observations(without)):
+        assert a[kept].tolist() == b.tolist()
+    with pytest.raises(TypeError, match="observe_attitude"):
+        gym.make("biso_cosim/GainTuning-v0", observe_attitude="no")
+
+
+def rollout_observations(env, steps=20):
+    env.action_space.seed(0)
+    obs, _ = env.reset(seed=7)
+    out = [obs]
+    for _ in range(steps):
+        out.append(env.step(env.action_space.sample())[0])
+    return out
 
 
 def test_die_temperature_moves_the_gyro_bias_by_the_parts_tempco():
