@@ -102,7 +102,7 @@ class DrivingEnv(CosimEnv, EzPickle):
       (default 1: a step at 1.5·v_lim earns what one at 0.5·v_lim does, at 2·v_lim nothing),
       so the reward peaks at the limit and its slope tells the agent which way to go (with
       0, speed above the limit is merely worth nothing, and a policy may drive the turns at
-      any speed it survives). |Δs'| ≤ |Δs|. (None: no limit, every metre counts);
+      any speed it survives). |Δs'| ≤ |Δs|. With `speed_limit_mps=None` every metre counts;
     - *reward_cross_track:* −`progress_weight` × `cross_track_weight` × max(Δs', 0) ×
       min(|e| / `max_cross_track_m`, 1), Δs' the credited progress, e the cross-track error:
       the fraction of the step's forward progress lost for driving off the centre line, all of
