@@ -385,13 +385,25 @@ def rear_slip_gradient_rad_per_g(vehicle: dict[str, float], tyres: str = DEFAULT
     rear axle does not slide sideways below the sudden slide). 0.0776 rad/g (4.45 °/g) for the
     reference car on ``TYRES``; the 40 m ISO 4138 circle measures 4.6-4.9 °/g
     (docs/vehicle.md)."""
+    rear = _rear_tyre_at_rest(vehicle, tyres, params)
+    if rear is None:
+        return 0.0
+    w_r, k, _ = rear
+    return w_r / k
+
+
+def _rear_tyre_at_rest(vehicle: dict[str, float], tyres: str,
+                       params: TyreParams | None) -> tuple[float, float, TyreParams] | None:
+    """(W_r, the static load of a rear tyre, N; its cornering stiffness K_yα there, N/rad; the
+    parameters) of ``tyres`` with ``params`` (default ``TYRES``), K_yα = p_Ky1·F_z0·
+    sin(2·atan(W_r/(p_Ky2·F_z0))) (Pacejka 2012 §4.3); None for the coulomb tyres."""
     if tyres not in TYRE_MODELS:
         raise ValueError(f"tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
     if tyres == "coulomb":
-        return 0.0
+        return None
     t = TYRES if params is None else params
     w_r = vehicle["cg_behind_front_axle_m"] / vehicle["wheelbase_m"] * vehicle["total_mass_kg"] * G0 / 2.0
-    return w_r / (t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))))
+    return w_r, t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n))), t
 
 
 def linear_accel_mps2(vehicle: dict[str, float], tyres: str = DEFAULT_TYRE_MODEL,
@@ -405,23 +417,19 @@ def linear_accel_mps2(vehicle: dict[str, float], tyres: str = DEFAULT_TYRE_MODEL
     bound. 6.1 m/s² (0.63 g) for the reference car on ``TYRES`` on a dry road (4.3 wet); 0 for the coulomb
     tyres (no limit: they steer kinematically up to their sudden slide, and their car is the
     one before issue 26, kept as it was)."""
-    if tyres not in TYRE_MODELS:
-        raise ValueError(f"tyres must be one of {', '.join(repr(t) for t in TYRE_MODELS)}, got {tyres!r}")
-    if tyres == "coulomb":
+    from scipy.optimize import brentq
+
+    rear = _rear_tyre_at_rest(vehicle, tyres, params)
+    if rear is None:
         return 0.0
-    t = TYRES if params is None else params
-    w_r = vehicle["cg_behind_front_axle_m"] / vehicle["wheelbase_m"] * vehicle["total_mass_kg"] * G0 / 2.0
-    k = t.pky1 * t.fz0_n * math.sin(2.0 * math.atan(w_r / (t.pky2 * t.fz0_n)))
+    w_r, k, t = rear
 
-    def secant(alpha: float) -> float:
-        return abs(magic_formula(w_r, 0.0, math.tan(alpha), params=t, friction_scale=friction_scale)[1]) / (k * alpha)
+    def lateral_force_n(alpha: float) -> float:
+        return abs(magic_formula(w_r, 0.0, math.tan(alpha), params=t, friction_scale=friction_scale)[1])
 
-    lo, hi = 1e-4, 0.5  # bisection on the slip angle: the secant falls monotonically over (0, 0.5)
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if secant(mid) > 0.9 else (lo, mid)
-    alpha = 0.5 * (lo + hi)
-    return G0 * abs(magic_formula(w_r, 0.0, math.tan(alpha), params=t, friction_scale=friction_scale)[1]) / w_r
+    # the secant F_y/α falls monotonically over (0, 0.5 rad): its one crossing of 0.9·K_yα
+    alpha = brentq(lambda a: lateral_force_n(a) / (k * a) - 0.9, 1e-4, 0.5, xtol=1e-15)
+    return G0 * lateral_force_n(alpha) / w_r
 
 
 STATE_STRIDE = 18
