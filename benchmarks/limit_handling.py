@@ -18,34 +18,24 @@ import argparse
 import math
 
 import numpy as np
+from scipy.signal import lfilter
 
 from biso_cosim import peers
 from biso_cosim.estimators import make_estimator
+from biso_cosim.frames import quat_conjugate, quat_rotate
 from biso_cosim.metrics import angle_errors_deg
+from biso_cosim.units import G0
 from biso_cosim.vehicle.handling import limit_drive
-
-G = 9.80665
 
 
 def _lp(x: np.ndarray, fs: float, tau: float) -> np.ndarray:
+    """First-order low-pass of time constant tau (s) along axis 0, started at x[0]."""
     a = 1.0 - math.exp(-1.0 / (fs * tau))
-    y = np.empty_like(x)
-    y[0] = x[0]
-    for i in range(1, len(x)):
-        y[i] = y[i - 1] + a * (x[i] - y[i - 1])
-    return y
+    return lfilter([a], [1.0, a - 1.0], x, axis=0, zi=(1.0 - a) * x[:1])[0]
 
 
 def _ddt(x: np.ndarray, fs: float) -> np.ndarray:
     return np.concatenate([np.zeros_like(x[:1]), np.diff(x, axis=0)]) * fs
-
-
-def _to_body(q_wb: np.ndarray, v_w: np.ndarray) -> np.ndarray:
-    w, x, y, z = q_wb.T
-    r = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                  np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                  np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-    return np.einsum("nji,nj->ni", r, v_w)
 
 
 def main() -> None:
@@ -85,8 +75,8 @@ def main() -> None:
     # speed v = odometry and the sideslip v_y = −(D_r/g₀)|v| f_y; all low-passed as in the kernel)
     w = truth.omega_b
     d = -np.asarray(vp["speed_point_b_m"])
-    d_r = vp["rear_slip_gradient_rad_per_g"] / G
-    u_true = _to_body(truth.q_wb, truth.vel_w)
+    d_r = vp["rear_slip_gradient_rad_per_g"] / G0
+    u_true = quat_rotate(quat_conjugate(truth.q_wb), truth.vel_w)
     v_axle = u_true - np.cross(w, d)  # the rear axle's velocity, body axes
     tau = 0.05
     fy_lp = _lp(accel[:, 1], fs, tau)

@@ -19,35 +19,25 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from biso_cosim.cosim import run_route
 from biso_cosim.estimators import flags as fl
 from biso_cosim.estimators import make_estimator
+from biso_cosim.frames import quat_conjugate, quat_rotate
 from biso_cosim.metrics import angle_errors_deg
 from biso_cosim.routes.route import parse_route
+from biso_cosim.units import G0
 from biso_cosim.vehicle.model import car_spec, vehicle_parameters
 from biso_cosim.vehicle.tyres import TYRES
 
-G = 9.80665
 WASHBOARD_X_M = (100.0, 180.0)
 
 
 def _lp(x: np.ndarray, fs_hz: float, tau_s: float) -> np.ndarray:
+    """First-order low-pass of time constant tau_s (s) along axis 0, started at x[0]."""
     a = 1.0 - math.exp(-1.0 / (fs_hz * tau_s))
-    y = np.empty_like(x)
-    y[0] = x[0]
-    for i in range(1, len(x)):
-        y[i] = y[i - 1] + a * (x[i] - y[i - 1])
-    return y
-
-
-def _to_body(q_wb: np.ndarray, v_w: np.ndarray) -> np.ndarray:
-    """R_wbᵀ v_w per row (Hamilton, scalar first)."""
-    w, x, y, z = q_wb.T
-    r = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                  np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                  np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-    return np.einsum("nji,nj->ni", r, v_w)
+    return lfilter([a], [1.0, a - 1.0], x, axis=0, zi=(1.0 - a) * x[:1])[0]
 
 
 def _drive(route, duration_s: float) -> dict:
@@ -61,7 +51,7 @@ def _drive(route, duration_s: float) -> dict:
             "accel": res.imu.accel_b, "mag": res.imu.mag_b, "q_true": res.truth.q_wb,
             "decl": math.radians(res.site["declination_deg"]), "lever": tuple(float(x) for x in lever),
             "odometry": 0.5 * (res.truth.wheel_rates[:, 2] + res.truth.wheel_rates[:, 3]) * radius,
-            "v_axle_b": _to_body(res.truth.q_wb, res.truth.vel_w) + np.cross(res.truth.omega_b, lever),
+            "v_axle_b": quat_rotate(quat_conjugate(res.truth.q_wb), res.truth.vel_w) + np.cross(res.truth.omega_b, lever),
             "x_m": res.truth.pos_w[:, 0]}
 
 
@@ -115,7 +105,7 @@ def _rear_slip_gradient_rad_per_g() -> float:
     """W_r/C_αr of the reference car's rear tyres at their static load (Gillespie 1992, ch. 6;
     K_yα = p_Ky1 F_z0 sin(2 atan(F_z/(p_Ky2 F_z0))), Pacejka 2012 §4.3)."""
     p = vehicle_parameters()
-    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G / 2
+    w_r = p["cg_behind_front_axle_m"] / p["wheelbase_m"] * p["total_mass_kg"] * G0 / 2
     return w_r / (TYRES.pky1 * TYRES.fz0_n * math.sin(2.0 * math.atan(w_r / (TYRES.pky2 * TYRES.fz0_n))))
 
 
@@ -134,12 +124,12 @@ def test_the_rear_axle_slides_in_a_steady_bend_and_its_sideslip_is_compensated()
     assert 3.0 < f_y < 4.5  # about 0.36 g
     # the single-track model's slip angle of the rear axle, outward of the bend
     assert beta_deg < -1.0
-    assert -math.degrees(d_r * f_y / G) == pytest.approx(beta_deg, rel=0.1)
+    assert -math.degrees(d_r * f_y / G0) == pytest.approx(beta_deg, rel=0.1)
     # the no-sideslip assumption pitches the estimate by about ω_z v_y/g; the model removes it
     _, err0 = _run(d)
     _, err = _run(d, rear_slip_gradient_rad_per_g=d_r)
     pitch0 = abs(float(np.mean(err0["pitch"][steady])))
-    expected = math.degrees(abs(float(np.mean(v[:, 1] * d["gyro"][steady, 2]))) / G)
+    expected = math.degrees(abs(float(np.mean(v[:, 1] * d["gyro"][steady, 2]))) / G0)
     assert pitch0 == pytest.approx(expected, rel=0.3)
     assert abs(float(np.mean(err["pitch"][steady]))) < 0.2 * pitch0
     assert float(np.sqrt(np.mean(err["roll"][steady] ** 2))) <= float(np.sqrt(np.mean(err0["roll"][steady] ** 2)))
@@ -161,10 +151,10 @@ def test_at_the_limit_the_sideslip_leaves_the_model_and_the_gyro_holds_the_tilt(
     assert np.abs(fy).max() > 1.4 * a_l
     # the rear axle's slip angle against the model's
     lever = np.asarray(vp["speed_point_b_m"])
-    v = _to_body(res.truth.q_wb, res.truth.vel_w) + np.cross(res.truth.omega_b, lever)
+    v = quat_rotate(quat_conjugate(res.truth.q_wb), res.truth.vel_w) + np.cross(res.truth.omega_b, lever)
     moving = v[:, 0] > 3.0
     beta = np.degrees(np.abs(np.arctan2(v[moving, 1], v[moving, 0])))
-    beta_model = math.degrees(vp["rear_slip_gradient_rad_per_g"]) * np.abs(fy[moving]).max() / G
+    beta_model = math.degrees(vp["rear_slip_gradient_rad_per_g"]) * np.abs(fy[moving]).max() / G0
     assert beta.max() > 2.5 * beta_model
     fs = float(res.sensor["output_rate_hz"])
     odometry = sim.odometry_mps(res.truth)
