@@ -18,8 +18,8 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
                    "shaping_gamma": 0.99},
     "Driving": {"route": "random"},
 }
-"""Environment arguments besides the defaults (docs/envs.md, "Why PPO did not learn" and "What
-the second round changed", gives the evidence for each):
+"""Environment arguments besides the defaults (docs/envs.md, "Why PPO did not learn" and
+"AttitudeEstimation and GainTuning, second round", gives the evidence for each):
 
 * AttitudeEstimation: the residual agent (``action_type="correction"``) on a raw MPU-9250 part
   after its start-up gyro calibration (``sensor_profile="mpu9250"``, ``gyro_calibration_s=2``:
