@@ -324,6 +324,23 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     return value
 
 
+def _check_shaping_gamma(value: Any) -> float | None:
+    """None, or the discount γ of a potential-based shaping term (``_shaping_reward``): 0 ≤ γ < 1."""
+    if value is None:
+        return None
+    gamma = _check_number("shaping_gamma", value, low=0.0, high=1.0)
+    if gamma >= 1.0:
+        raise ValueError(f"shaping_gamma must be < 1 (the potential is −error/(1 − γ)), got {value!r}")
+    return gamma
+
+
+def _shaping_reward(gamma: float, error_before: float, error_after: float) -> float:
+    """The potential-based shaping term γΦ(s') − Φ(s) with Φ = −error/(1 − γ) (Ng, Harada and
+    Russell 1999): with the learner's discount γ it changes every policy's discounted return by
+    the first state's potential only."""
+    return (error_before - gamma * error_after) / (1.0 - gamma)
+
+
 def _check_number(name: str, value: Any, *, low: float | None = None, high: float | None = None,
                   low_open: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):

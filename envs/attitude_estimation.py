@@ -11,7 +11,8 @@ from gymnasium.utils import EzPickle
 
 from biso_cosim.cosim import DEFAULT_SENSOR_PROFILE, EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
+from biso_cosim.envs._common import (COMMON_ARGUMENTS, CosimEnv, Scale, _check_number, _check_shaping_gamma,
+                                      _shaping_reward)
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.envs._kernels import _angle, _angles_to, _attitude_work, _corrected, _correction_work, _log_gains
 from biso_cosim.frames import quat_from_euler
@@ -225,10 +226,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             if action_type != "correction":
                 raise ValueError(f'shaping_gamma needs action_type="correction" (its potential is the prior\'s '
                                  f"error), got action_type={action_type!r}")
-            shaping_gamma = _check_number("shaping_gamma", shaping_gamma, low=0.0, high=1.0)
-            if shaping_gamma >= 1.0:
-                raise ValueError(f"shaping_gamma must be < 1 (the potential is −error/(1 − γ)), got {shaping_gamma!r}")
-        self.shaping_gamma = shaping_gamma
+        self.shaping_gamma = _check_shaping_gamma(shaping_gamma)
         """γ of the potential-based shaping term (None: none)."""
         spec = EstimatorSpec(estimator, dict(estimator_params or {}), label="baseline")
         super().__init__(**{k: arguments[k] for k in COMMON_ARGUMENTS}, estimators=(spec,))
@@ -301,8 +299,7 @@ class AttitudeEstimationEnv(CosimEnv, EzPickle):
             prior_error = _angle(self._prior_q, self._newest_row[Truth.QUAT_COLUMN:Truth.QUAT_COLUMN + 4])
             info["prior_error_rad"] = prior_error
             if self.shaping_gamma is not None:
-                gamma = self.shaping_gamma
-                shaping = (self._prior_error - gamma * prior_error) / (1.0 - gamma)
+                shaping = _shaping_reward(self.shaping_gamma, self._prior_error, prior_error)
                 info["reward_shaping"] = shaping
                 reward = reward + shaping
             self._prior_error = prior_error

@@ -12,7 +12,8 @@ from gymnasium.utils import EzPickle
 
 from biso_cosim.cosim import EstimatorSpec
 from biso_cosim.loop import PeriodWork
-from biso_cosim.envs._common import COMMON_ARGUMENTS, CosimEnv, Scale, _check_number
+from biso_cosim.envs._common import (COMMON_ARGUMENTS, CosimEnv, Scale, _check_number, _check_shaping_gamma,
+                                      _shaping_reward)
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
@@ -267,11 +268,7 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self.observe_attitude = bool(observe_attitude)
         self.reference_action = None if reference_action is None else self._check_reference(reference_action)
         """The normalised action of the reference copy (None: no reference copy)."""
-        if shaping_gamma is not None:
-            shaping_gamma = _check_number("shaping_gamma", shaping_gamma, low=0.0, high=1.0)
-            if shaping_gamma >= 1.0:
-                raise ValueError(f"shaping_gamma must be < 1 (the potential is −error/(1 − γ)), got {shaping_gamma!r}")
-        self.shaping_gamma = shaping_gamma
+        self.shaping_gamma = _check_shaping_gamma(shaping_gamma)
         """γ of the potential-based shaping term (None: none)."""
         specs = (EstimatorSpec(estimator, fixed, label="tuned"), EstimatorSpec(estimator, fixed, label="baseline"))
         if self.reference_action is not None:  # (its gains are set at reset, as the tuned copy's)
@@ -484,8 +481,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
             info["reward_reference"] = info["reference_error_rad"]
             reward = reward + info["reference_error_rad"]
         if self.shaping_gamma is not None:
-            gamma = self.shaping_gamma
-            info["reward_shaping"] = (self._potential_error - gamma * info["potential_error_rad"]) / (1.0 - gamma)
+            info["reward_shaping"] = _shaping_reward(self.shaping_gamma, self._potential_error,
+                                                     info["potential_error_rad"])
             reward = reward + info["reward_shaping"]
             self._potential_error = info["potential_error_rad"]
         truncated = self._truncated
