@@ -239,3 +239,28 @@ def test_vibration_span_and_hand():
     assert np.sqrt(np.mean(np.sum(calm.accel_w ** 2, axis=1))) == pytest.approx(0.333 * 9.80665 / np.sqrt(2), rel=0.05)
     with pytest.raises(ValueError, match="vib_span"):
         mo.make_motion("vibration", 10.0, 100.0, vib_span=(0.5, 0.4))
+
+
+def test_translation_rests_and_moves_in_fields_of_their_own():
+    """``rest_field`` and ``path_field`` (norm ratio, azimuth and dip changes against ``field_w``)
+    are the field at the rest and after the start, measured back as such; the slow translation is
+    the translation at its own pace and swing."""
+    change_rest, change_path = (0.945, 1.77, 2.43), (1.019, -1.58, -0.26)
+    m = mo.make_motion("translation", 10.0, 200.0, rest_s=5.0, rest_field=change_rest, path_field=change_path)
+    moving = m.info["moving"]
+    st = mo.recording_statistics(m.fs_hz, m.omega_b, m.specific_force_b, m.mag_b, m.q_wb, moving=moving,
+                                 field_w=m.earth_field_w)
+    np.testing.assert_allclose(st["rest_field"], change_rest, atol=1e-9)
+    after = m.t_s > 5.0 + mo.REST_RAMP_S
+    np.testing.assert_allclose(mo._field_against(m.mag_w[after].mean(axis=0), m.earth_field_w), change_path, atol=1e-9)
+    plain = mo.make_motion("translation", 10.0, 200.0, rest_s=5.0)
+    np.testing.assert_array_equal(plain.q_wb, m.q_wb)  # the field changes nothing else
+    slow = mo.make_motion("slow_translation", 10.0, 200.0, seed=4)
+    same = mo.make_motion("translation", 10.0, 200.0, seed=4, accel_g=0.28, accel_hz=(0.25, 0.56, 0.85),
+                          hand_rate_dps=(23.0, 18.0, 25.0), swing_deg=(3.0, 2.0, 2.0))
+    assert slow.name == "slow_translation"
+    np.testing.assert_array_equal(slow.specific_force_b, same.specific_force_b)
+    with pytest.raises(ValueError, match="rest_field"):
+        mo.make_motion("translation", 1.0, 100.0, rest_field=(0.0, 1.0, 1.0))
+    with pytest.raises(ValueError, match="accel_hz"):
+        mo.make_motion("translation", 1.0, 100.0, accel_hz=(1.0, -1.0, 2.0))
