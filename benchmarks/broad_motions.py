@@ -41,7 +41,7 @@ METHODS = ("biso_plus", "vqf", "imufusion")
 G_BERLIN = 9.8128  # m/s², BROAD's site (its accelerometer reads 9.82–9.89 m/s² at rest)
 LAB_FIELD_TRIALS = ("01", "05", "07")  # undisturbed rotation trials: the lab's field, fitted with the offset
 MOTION_OF_TRIAL = {  # BROAD trial (number) → the motion of the comparison that stands for it
-    "01": "tumble", "05": "tumble", "07": "fast_tumble", "11": "translation", "15": "translation",
+    "01": "tumble", "05": "tumble", "07": "fast_tumble", "11": "slow_translation", "15": "translation",
     "21": "shake", "27": "vibration", "29": "near_magnet", "33": "magnet",
 }
 
@@ -120,6 +120,8 @@ def broad_statistics(folder: str) -> dict:
                                           field_w=lab)
             st["mag_offset_lab_field_ut"] = st_lab["mag_offset_ut"]
             st["mag_lag_ms"] = st_lab["mag_lag_ms"]
+            # the field where the sensor rests and where it is moved, against the lab's
+            st["path_field"], st["rest_field"] = st_lab["path_field"], st_lab["rest_field"]
             grad, explained = field_gradient(r.fs_hz, r.gyro_b, r.accel_b, r.mag_b, r.q_ref, r.movement, lab)
             st["field_gradient_ut_per_m"] = np.round(grad, 3).tolist()
             st["field_gradient_explained"] = explained
@@ -207,9 +209,23 @@ def main() -> None:
     print(f"  mean where it explains over 40 %, symmetric and traceless (a field without sources): "
           f"{np.round(lab_gradient(real), 1).tolist()}")
     print(f"motions through compare.motion_dataset (seeds {args.seeds}; |o| against the true field)")
-    for name in DEFAULT_MOTIONS:
-        for seed in seeds:
-            line(f"{name} seed {seed}", motion_statistics(name, seed), "mag_offset_ut")
+    sim = {(name, seed): motion_statistics(name, seed) for name in DEFAULT_MOTIONS for seed in seeds}
+    for (name, seed), st in sim.items():
+        line(f"{name} seed {seed}", st, "mag_offset_ut")
+
+    def places(label, st):
+        print(f"  {label:34} rest {np.round(st.get('rest_field', [np.nan] * 3), 3).tolist()}  "
+              f"moving {np.round(st['path_field'], 3).tolist()}  field's spread in body axes "
+              f"{np.round(np.degrees(st['field_spread_rad']), 1).tolist()} °")
+
+    print("the field where the sensor rests and where it moves (norm ratio, azimuth, dip change in ° against the "
+          "lab's field; the motions: against the true field), and how far its direction moves in body axes (RMS "
+          "along the principal axes):")
+    for name, st in real["trials"].items():
+        places(name, st)
+    for (name, seed), st in sim.items():
+        if name in ("translation", "slow_translation"):
+            places(f"{name} seed {seed}", st)
     if args.no_ranking:
         return
 
