@@ -368,6 +368,10 @@ def _step(c, st, g, a, m, speed, speed_given, imu_flags):
                 st[k + 1] += a * ((n - st[k]) ** 2 - st[k + 1])
             if not st[j + 1] < st[j + 3]:  # the raw norm is as steady: no offset shows in it
                 m_used = (mx, my, mz)
+            elif c[C["offset_shrink2"]] > 0.0:  # used, shrunk toward 0 by |o|²/(|o|² + σ_s²)
+                o2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2]
+                sh = o2 / (o2 + c[C["offset_shrink2"]])
+                m_used = (mx - sh * o[0], my - sh * o[1], mz - sh * o[2])
         mwx, mwy, mwz = _qrot(*lam, *m_used)
         mh = math.sqrt(mwx * mwx + mwy * mwy)
         norm = math.sqrt(mh * mh + mwz * mwz)
@@ -501,6 +505,8 @@ CASES = {
     "tumble, hard iron learned": ({"mag_offset_bias_sigma_rad_s": 0.05}, "iron", 0, True),
     "tumble, hard iron, short norm-test window": (
         {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_test_angle_rad": 0.3}, "iron", 0, True),
+    "tumble, hard iron, norm test without the shrink": (
+        {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_shrink_ut": 0.0}, "iron", 0, True),
     "tumble, hard iron, no norm test": (
         {"mag_offset_bias_sigma_rad_s": 0.05, "mag_offset_test_angle_rad": 0.0}, "iron", 0, True),
     "tumble, speed with gaps, NaN samples, sensor flags, full scales": (

@@ -262,6 +262,16 @@ class BisoPlusParams:
             "turns are slow, so the vector model holds, while level driving shows the norm only the "
             "horizontal offset's projection, of the order of the noise; 0 = o always used",
         source="one turn (chosen, not fitted); measured on BROAD (docs/estimators.md)")
+    mag_offset_shrink_ut: float = param(
+        1.0, symbol="σ_s", unit="µT",
+        doc="while the norm test uses the learned offset o, o is shrunk toward 0 by |o|²/(|o|² + σ_s²): an "
+            "offset as small as σ_s cannot be told from what the vector model takes for one at a nearly "
+            "fixed attitude (a room's gradient felt along a hand's translation, in step with its turns: "
+            "0.7–1.2 µT on BROAD's translation trials), while a large one (a phone's 2.4 µT, an attached "
+            "magnet's 27 µT) is used nearly whole. Without a speed input and with the norm test only; "
+            "0 = o used whole",
+        source="the apparent offset of BROAD's translation trials and the residual offset of its calibrated "
+               "IMU (0.2–0.9 µT), not fitted (docs/estimators.md)")
     declination_rad: float = param(0.0, symbol="D", unit="rad", doc="magnetic declination, east positive", source="")
     # -- speed input
     speed_point_b_m: tuple[float, float, float] = param(
@@ -346,7 +356,7 @@ _COEF_LAYOUT = (
     ("offset_bias2", 1), ("fs", 1), ("inv_gate_g", 1), ("dip_c", 1), ("dip_s", 1), ("cos_dip_tol", 1),
     ("acc_bw", 5), ("inv_gate_free_g", 1), ("r_head", 1), ("kappa", 1), ("a_dist", 1), ("tau_m2", 1),
     ("bias_w_vertical_free", 1), ("slip_accel", 1), ("slip_hold", 1), ("rear_slip", 1),
-    ("inv_offset_test", 1), ("linear_accel2", 1), ("linear_hold", 1),
+    ("inv_offset_test", 1), ("linear_accel2", 1), ("linear_hold", 1), ("offset_shrink2", 1),
 )
 _C = layout_offsets(_COEF_LAYOUT)
 (_C_H, _C_A_ACC, _C_A_ACCV, _C_KT, _C_KH, _C_KP, _C_GATE, _C_T0, _C_BP0, _C_BV, _C_BWM, _C_BWV, _C_BWR,
@@ -354,7 +364,7 @@ _C = layout_offsets(_COEF_LAYOUT)
  _C_BNORM, _C_DIP, _C_OFFSET, _C_Q_OFFSET, _C_Q_FIELD, _C_R_MAG, _C_OFF_N, _C_DECL, _C_CDH, _C_SDH, _C_RV,
  _C_A_SPEED, _C_G, _C_GRANGE, _C_ARANGE, _C_OFF_BIAS2, _C_FS, _C_INV_GATE_G, _C_DIP_C, _C_DIP_S, _C_COS_DTOL,
  _C_BW, _C_INV_GATE_FREE, _C_R_HEAD, _C_KAPPA, _C_A_DIST, _C_TAU_M2, _C_BWVF, _C_SLIP_A, _C_SLIP_HOLD,
- _C_REAR_SLIP, _C_INV_OTEST, _C_LIN2, _C_LIN_HOLD) = (
+ _C_REAR_SLIP, _C_INV_OTEST, _C_LIN2, _C_LIN_HOLD, _C_OFF_SHRINK2) = (
     _C[name] for name, _ in _COEF_LAYOUT)
 _C_SIZE = _C["_size"]
 
@@ -391,7 +401,7 @@ _NON_NEGATIVE = ("tau_acc_s", "tau_acc_speed_s", "k_tilt", "k_heading", "k_p", "
                  "mag_reject_max_s", "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor",
                  "mag_disturbance_gain", "tau_mag_disturbance_s", "mag_time_skew_s",
                  "bias_heading_factor_free", "speed_slip_hold_s", "rear_slip_gradient_rad_per_g",
-                 "mag_offset_test_angle_rad", "linear_accel_mps2", "linear_hold_s")
+                 "mag_offset_test_angle_rad", "linear_accel_mps2", "linear_hold_s", "mag_offset_shrink_ut")
 """The real parameters that must be finite and >= 0."""
 _POSITIVE = ("accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut",
              "mag_offset_sigma_ut", "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s",
@@ -446,6 +456,7 @@ _V_SLIP_A = _V_INDEX["speed_slip_accel_mps2"]
 _V_SLIP_HOLD = _V_INDEX["speed_slip_hold_s"]
 _V_REAR_SLIP = _V_INDEX["rear_slip_gradient_rad_per_g"]
 _V_OTEST = _V_INDEX["mag_offset_test_angle_rad"]
+_V_OSHRINK = _V_INDEX["mag_offset_shrink_ut"]
 _V_LIN = _V_INDEX["linear_accel_mps2"]
 _V_LIN_HOLD = _V_INDEX["linear_hold_s"]
 
@@ -535,6 +546,7 @@ def biso_plus_derive(v, c):
     c[_C_SLIP_A], c[_C_SLIP_HOLD], c[_C_REAR_SLIP] = v[_V_SLIP_A], v[_V_SLIP_HOLD], v[_V_REAR_SLIP] / G0
     c[_C_INV_OTEST] = 0.0 if v[_V_OTEST] == 0.0 else 1.0 / v[_V_OTEST]
     c[_C_LIN2], c[_C_LIN_HOLD] = v[_V_LIN] * v[_V_LIN], v[_V_LIN_HOLD]
+    c[_C_OFF_SHRINK2] = v[_V_OSHRINK] * v[_V_OSHRINK]
     return -1
 
 
@@ -608,6 +620,8 @@ def biso_plus_coefficients(p: BisoPlusParams, fs_hz: float) -> np.ndarray:
     # the offset's norm test: 1/Θ_o (0: off, the offset always used)
     theta = v["mag_offset_test_angle_rad"]
     c[_C_INV_OTEST] = 0.0 if theta == 0.0 else 1.0 / theta
+    # its shrink toward 0 while used: σ_s² (0: o whole)
+    c[_C_OFF_SHRINK2] = v["mag_offset_shrink_ut"] * v["mag_offset_shrink_ut"]
     # the tyres' linear range: a_l² (0: no limit)
     c[_C_LIN2], c[_C_LIN_HOLD] = v["linear_accel_mps2"] * v["linear_accel_mps2"], v["linear_hold_s"]
     return c
@@ -883,7 +897,7 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
     rest_n, rest_v = c[_C_REST_N], c[_C_REST_V]
     g, inv_gate_g = c[_C_G], c[_C_INV_GATE_G]
     offset_on, off_bias2, off_n = c[_C_OFFSET] != 0.0, c[_C_OFF_BIAS2], c[_C_OFF_N]
-    inv_otest = c[_C_INV_OTEST]
+    inv_otest, off_shrink2 = c[_C_INV_OTEST], c[_C_OFF_SHRINK2]
     c_bnorm, c_dip, c_dipc, c_dips = c[_C_BNORM], c[_C_DIP], c[_C_DIP_C], c[_C_DIP_S]
     learn_norm, learn_dip = c_bnorm < 0.0, math.isnan(c_dip)
     btol, cos_dtol, rej_n = c[_C_BTOL], c[_C_COS_DTOL], c[_C_REJ_N]
@@ -1124,6 +1138,10 @@ def _biso_plus_batch(c, st, gyro, accel, mag, speed, imu_flags, q_out, flags_out
                 d0 = n0 - st[j + 2]
                 st[j + 3] += a_ot * (d0 * d0 - st[j + 3])
                 if st[j + 1] < st[j + 3]:
+                    if off_shrink2 > 0.0:  # shrunk toward 0 by |o|²/(|o|² + σ_s²)
+                        o2 = ox * ox + oy * oy + oz * oz
+                        sh = o2 / (o2 + off_shrink2)
+                        dmx, dmy, dmz = mx - sh * ox, my - sh * oy, mz - sh * oz
                     mwx, mwy, mwz = _qrot(lw, lx, ly, lz, dmx, dmy, dmz)
                 else:
                     mwx, mwy, mwz = _qrot(lw, lx, ly, lz, mx, my, mz)

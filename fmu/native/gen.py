@@ -71,7 +71,8 @@ RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
             "rest_filter_tau_s", "rest_gyro_rad_s", "rest_accel_mps2", "rest_speed_mps", "mag_reject_max_s",
             "tau_field_s", "mag_offset_interval_s", "tau_speed_s", "bias_heading_factor", "mag_disturbance_gain",
             "tau_mag_disturbance_s", "mag_time_skew_s", "bias_heading_factor_free", "speed_slip_hold_s",
-            "rear_slip_gradient_rad_per_g", "mag_offset_test_angle_rad", "linear_accel_mps2", "linear_hold_s")},
+            "rear_slip_gradient_rad_per_g", "mag_offset_test_angle_rad", "linear_accel_mps2", "linear_hold_s",
+            "mag_offset_shrink_ut")},
         **{name: _POS for name in (
             "accel_gate", "mag_norm_tol", "mag_dip_tol_rad", "gravity_mps2", "mag_noise_ut", "mag_offset_sigma_ut",
             "tau_mag_offset_s", "bias_sigma_init_rad_s", "bias_forgetting_s", "bias_sigma_motion_rad_s",

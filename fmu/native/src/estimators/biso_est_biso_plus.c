@@ -116,6 +116,8 @@ static int plus_coefficients(const char *kind, const double *p, double fs_hz, do
     /* the tyres' linear range: a_l^2 (0: no limit) */
     c[C(LINEAR_ACCEL2)] = p[P(LINEAR_ACCEL_MPS2)] * p[P(LINEAR_ACCEL_MPS2)];
     c[C(LINEAR_HOLD)] = p[P(LINEAR_HOLD_S)];
+    /* the offset's shrink toward 0 while the test uses it: sigma_s^2 (0: o whole) */
+    c[C(OFFSET_SHRINK2)] = p[P(MAG_OFFSET_SHRINK_UT)] * p[P(MAG_OFFSET_SHRINK_UT)];
     /* what the Python estimator refuses with an OverflowError (**, round) or runs on as inf */
     if (biso_est_need_finite(kind, c[C(BIAS_P0)], "initial bias variance", "bias_sigma_init_rad_s", msg, size)
         || biso_est_need_finite(kind, c[C(BIAS_V)], "bias random walk", "bias_forgetting_s", msg, size)
@@ -397,7 +399,7 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
         const double g = c[C(G)], inv_gate_g = c[C(INV_GATE_G)];
         const int offset_on = c[C(OFFSET_ON)] != 0.0;
         const double off_bias2 = c[C(OFFSET_BIAS2)], off_n = c[C(OFFSET_N)];
-        const double inv_otest = c[C(INV_OFFSET_TEST)];
+        const double inv_otest = c[C(INV_OFFSET_TEST)], off_shrink2 = c[C(OFFSET_SHRINK2)];
         const double c_bnorm = c[C(B_NORM)], c_dip = c[C(DIP)], c_dipc = c[C(DIP_C)], c_dips = c[C(DIP_S)];
         const int learn_norm = c_bnorm < 0.0, learn_dip = isnan(c_dip);
         const double btol = c[C(B_TOL)], cos_dtol = c[C(COS_DIP_TOL)], rej_n = c[C(REJECT_MAX)];
@@ -631,9 +633,16 @@ static void plus_update(const double *c, double *st, const biso_est_input *in, b
                 ot[2] += a_ot * (n0 - ot[2]);
                 d0 = n0 - ot[2];
                 ot[3] += a_ot * (d0 * d0 - ot[3]);
-                if (ot[1] < ot[3])
+                if (ot[1] < ot[3]) {
+                    if (off_shrink2 > 0.0) {  /* shrunk toward 0 by |o|^2/(|o|^2 + sigma_s^2) */
+                        double o2 = ox * ox + oy * oy + oz * oz;
+                        double sh = o2 / (o2 + off_shrink2);
+                        dmx = mx - sh * ox;
+                        dmy = my - sh * oy;
+                        dmz = mz - sh * oz;
+                    }
                     mw = bq_rot(lw, lx, ly, lz, dmx, dmy, dmz);
-                else
+                } else
                     mw = bq_rot(lw, lx, ly, lz, mx, my, mz);
             } else {
                 mw = bq_rot(lw, lx, ly, lz, mx - ox, my - oy, mz - oz);

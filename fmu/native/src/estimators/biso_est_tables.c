@@ -360,6 +360,10 @@ static const biso_est_param params_biso_plus[] = {
      "norm test of the learned offset o: o is used only while the field's norm with it, |m \342\210\222 o|, varies less than the raw norm |m|. A real offset makes |m| change with the attitude (by the field's direction in body axes \302\267 o) and leaves |m \342\210\222 o| steady; an offset the vector model m = R_Ib\341\265\200 B_I + o took from a field that is not uniform (a room's gradient along a translation) or not simultaneous with the gyro (a lagging field under fast rotation) need not, and then the raw field is used. Both variances are low-passed over the last \316\230_o of rotation (a window in angle: without rotation the norm cannot tell an offset, and the decision is held). Without a speed input only: a vehicle's field along the road is uniform at the scale of its motion and its turns are slow, so the vector model holds, while level driving shows the norm only the horizontal offset's projection, of the order of the noise; 0 = o always used",
      "one turn (chosen, not fitted); measured on BROAD (docs/estimators.md)",
      BISO_EST_REAL, 0, 1, 0x1.921fb54442d18p+2, 0.0, HUGE_VAL, 0, NULL, 0},
+    {"mag_offset_shrink_ut", "\317\203_s", "\302\265T", "uT",
+     "while the norm test uses the learned offset o, o is shrunk toward 0 by |o|\302\262/(|o|\302\262 + \317\203_s\302\262): an offset as small as \317\203_s cannot be told from what the vector model takes for one at a nearly fixed attitude (a room's gradient felt along a hand's translation, in step with its turns: 0.7\342\200\2231.2 \302\265T on BROAD's translation trials), while a large one (a phone's 2.4 \302\265T, an attached magnet's 27 \302\265T) is used nearly whole. Without a speed input and with the norm test only; 0 = o used whole",
+     "the apparent offset of BROAD's translation trials and the residual offset of its calibrated IMU (0.2\342\200\2230.9 \302\265T), not fitted (docs/estimators.md)",
+     BISO_EST_REAL, 0, 1, 0x1.0000000000000p+0, 0.0, HUGE_VAL, 0, NULL, 0},
     {"declination_rad", "D", "rad", "rad",
      "magnetic declination, east positive",
      "",
@@ -413,7 +417,7 @@ static const biso_est_param params_biso_plus[] = {
      "PS-MPU-9250A-01 \302\2473.2 (\302\2612\342\200\246\302\26116 g)",
      BISO_EST_REAL, 1, 1, NAN, 0.0, HUGE_VAL, 1, NULL, 0},
 };
-static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49};
+static const int family_index_biso_plus[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50};
 
 const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
     {"biso", "faithful BISO: Poisson equation with cross-linked positional correction (Aleshkin et al. 2024, reading D)",
@@ -430,5 +434,5 @@ const biso_est_kind_info biso_est_kinds[BISO_EST_N_KINDS] = {
      params_dcm_pi, family_index_dcm_pi, 9, NULL, 0},
     {"biso_plus", "BISO family for vehicles: gyro-bias estimation, acceleration compensation from speed, gating, magnetic disturbance detection, unbiased cross-link",
      BISO_EST_FAMILY_BISO_PLUS, BISO_EST_INPUT_SPEED_MPS | BISO_EST_INPUT_IMU_FLAGS, 1,
-     params_biso_plus, family_index_biso_plus, 50, NULL, 0},
+     params_biso_plus, family_index_biso_plus, 51, NULL, 0},
 };
