@@ -42,7 +42,7 @@ G_BERLIN = 9.8128  # m/s², BROAD's site (its accelerometer reads 9.82–9.89 m/
 LAB_FIELD_TRIALS = ("01", "05", "07")  # undisturbed rotation trials: the lab's field, fitted with the offset
 MOTION_OF_TRIAL = {  # BROAD trial (number) → the motion of the comparison that stands for it
     "01": "tumble", "05": "tumble", "07": "fast_tumble", "11": "slow_translation", "15": "translation",
-    "21": "shake", "27": "vibration", "29": "near_magnet", "33": "magnet",
+    "21": "shake", "24": "tapping", "27": "vibration", "29": "near_magnet", "33": "magnet",
 }
 
 

@@ -48,7 +48,7 @@ __all__ = ["Dataset", "route_dataset", "run_dataset", "motion_dataset", "run_met
            "DEFAULT_MOTIONS", "format_table"]
 
 DEFAULT_MOTIONS = ("tumble", "fast_tumble", "shake", "magnet", "translation", "slow_translation", "near_magnet",
-                   "vibration", "moving_start")
+                   "vibration", "tapping", "moving_start")
 """Non-vehicle motions of the comparison (issue 4's targets; issue 23's BROAD-like ones)."""
 
 # Sensor configuration for the non-vehicle motions: tumbling reaches 5.7 rad/s, beyond the
@@ -82,6 +82,7 @@ MOTION_SETUP["slow_translation"] = {"rest_s": 33.0, "field_gradient_ut_per_m": _
 MOTION_SETUP["shake"] = {"rest_s": 10.0, "spin_dps": -249.0, "wobble_deg": (56.0, 20.0, 56.0),
                          "wobble_hz": (0.8, 1.2, 0.9), "accel_g": 1.566, "accel_hz": (1.0, 1.5, 2.3),
                          "base_deg": (189.0, 8.6, 0.0)}
+MOTION_SETUP["tapping"] = {"rest_s": 10.0, "hand_accel_mps2": 2.23}
 MOTION_SETUP["vibration"] = {"rest_s": 10.0, "vib_span": (0.19, 1.0),
                              "hand": {"wobble_deg": (4.3, 2.6, 1.85), "wobble_hz": (1.2, 2.0, 2.8), "accel_g": 0.333,
                                       "accel_hz": (0.45, 0.7, 1.1)}}
@@ -119,6 +120,9 @@ when the movement began. ``slow_translation`` is trial 11: decimetres of travel 
 the hand's turns in step and hardly any other change of attitude, so the gradient passes for an
 offset; biso_plus's online offset estimate takes it for one (1.6× VQF on the trial, 0.93° of
 total RMSE without the estimate against 1.43° with it; ``motions.slow_translation``).
+``tapping`` is BROAD's tapping trial 24: the hand turns the sensor as on the rotation trials
+(156 °/s median; its acceleration below 20 Hz 2.23 m/s² RMS, the trial's) while a finger taps it
+every 4 s with 50–130 m/s² at 90 Hz along z (``motions.tapping``).
 ``shake`` is BROAD's fast combined trial 21 (rotation and translation together): the sensor
 spun about its y axis at −249 °/s (the trial's mean rate) while the hand turns it ±56° in yaw
 and roll, ±20° in pitch at 0.8–1.2 Hz (|ω| median 388 °/s, RMS 232, 280, 175 °/s about x, y, z
