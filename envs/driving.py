@@ -83,7 +83,10 @@ class DrivingEnv(CosimEnv, EzPickle):
       `heading`, the heading relative to the route's direction of travel, in units of π rad;
     - *route_ahead (P × 2):* the route's centre line at `preview_spacing_m`, 2·`preview_spacing_m`,
       … ahead of the nearest point to the pose, in the pose's frame (x forward, y left), in
-      units of the preview's reach P·`preview_spacing_m` (bounds ±2).
+      units of the preview's reach P·`preview_spacing_m` (bounds ±2). Past the route's end
+      the points go on along its last direction, as the road does past a finish line (the
+      preview shrinking to the end point would read as a wall: the policies of `docs/envs.md`
+      "Driving at 10 Hz" stopped short of it).
 
     ## Rewards
     The total reward is: ***reward*** *=* *reward_progress + reward_cross_track +
@@ -152,7 +155,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     * v0: Initial version; the speed limit of the progress reward (`speed_limit_mps`,
       `speed_limit_accel_mps2`) added (2026-12-07); the steering system's rate limit
       (`steer_rate_rad_s`) and the loss of progress beyond the limit (`overspeed_weight`)
-      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed").
+      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed");
+      the route ahead continued past the route's end (2026-12-07, "Driving at 10 Hz").
     """
 
     ARGUMENTS = {
