@@ -124,7 +124,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
     342.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
-    353.5 on the procedural routes of those seeds) and completes every one of them (tested).
+    353.6 on the procedural routes of those seeds; 343.3 and 359.1 at 10 Hz decisions) and
+    completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
