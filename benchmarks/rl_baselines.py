@@ -17,13 +17,13 @@ for Driving, trained on procedural routes, on ``figure8`` as well) next to
 
 Default hyperparameters of SB3 (``MlpPolicy``) except those of ``biso_cosim.envs.training``
 (AttitudeEstimation's residual agent, with the environment arguments there, explores less at
-the start; Driving looks further ahead), observations and rewards normalised by
+the start; Driving decides at 10 Hz), observations and rewards normalised by
 ``VecNormalize``; training steps/s with 1 and with 2 environments (``SubprocVecEnv``, wall
 time) measured over ``--speed-steps`` steps each. Needs the extra ``rl`` (``pip install
 torch==2.13.0`` first on this machine: the local CPU build):
 
     python benchmarks/rl_baselines.py --timesteps 20000             # a quick look
-    python benchmarks/rl_baselines.py --envs Driving --timesteps 700000 --curve-rows 14 --speed-steps 0   # the docs' table
+    python benchmarks/rl_baselines.py --envs Driving --timesteps 300000 --curve-rows 10 --speed-steps 0   # the docs' table
     python benchmarks/rl_baselines.py --envs AttitudeEstimation GainTuning --timesteps 150000 --speed-steps 0
 """
 
@@ -203,6 +203,9 @@ def main():
     parser.add_argument("--seeds", type=int, default=5, help="evaluation episodes (seeds 1000, 1001, ...)")
     parser.add_argument("--speed-steps", type=int, default=4096, help="steps of the steps/s measurement (0: none)")
     parser.add_argument("--seed", type=int, default=0, help="training seed")
+    parser.add_argument("--n-envs", type=int, default=1, help="vector environments of the training (one process "
+                                                              "each when > 1): a rollout then holds each one's "
+                                                              "n_steps")
     parser.add_argument("--load-dir", default=None, help="evaluate the models saved there by --save-dir "
                                                          "(checkpoints included) instead of training")
     parser.add_argument("--curve-rows", type=int, default=10, help="rows of the learning curve over the budget")
@@ -214,6 +217,8 @@ def main():
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
+    if args.n_envs < 1:
+        parser.error("--n-envs must be >= 1")
     if args.curve_rows < 1:
         parser.error("--curve-rows must be >= 1")
     seeds = list(range(EVALUATION_SEED, EVALUATION_SEED + args.seeds))
@@ -259,13 +264,15 @@ def main():
                     model.save(out / f"{name}_{algo}.zip")
                     vec.save(str(out / f"{name}_{algo}_vecnormalize.pkl"))
 
-            model, vec, curve, rate = train(name, algo, args.timesteps, args.seed, rows=args.curve_rows, checkpoint=save)
+            model, vec, curve, rate = train(name, algo, args.timesteps, args.seed, n_envs=args.n_envs,
+                                            rows=args.curve_rows, checkpoint=save)
             if save is not None:
                 save(model, vec)
             print(f"  {algo.upper()} learning curve (steps: mean training return over the episodes since the last row):")
             for steps, mean, count in curve:
                 print(f"    {steps:>8}: {mean:10.1f}  ({count} episodes)")
-            label = f"{algo.upper()} ({args.timesteps} steps, {rate:.0f} steps/s)"
+            envs = f", {args.n_envs} envs" if args.n_envs > 1 else ""
+            label = f"{algo.upper()} ({args.timesteps} steps{envs}, {rate:.0f} steps/s)"
             for where, env in evaluations.items():
                 results[where].update(evaluation_rows(name, label, *evaluate(model, vec, env, seeds)))
         for where, rows in results.items():

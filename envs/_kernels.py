@@ -347,16 +347,22 @@ def _driving_view(obs, window, gnss, q_est, newest, sensordata, axle_x, steer_in
 
 @jit
 def _route_ahead(path_x, path_y, path_s, s, offsets, x, y, yaw, out):
-    """Points of the path at arc lengths s + offsets (the last sample at or before each,
-    clamped to the path), relative to (x, y), in the frame turned by yaw: out (P, 2)."""
+    """Points of the path at arc lengths s + offsets (the last sample at or before each;
+    beyond the path's end, on the straight line its last segment continues on: the road
+    goes on past the finish line, so the preview does not shrink to a point there),
+    relative to (x, y), in the frame turned by yaw: out (P, 2)."""
     c, sn = math.cos(yaw), math.sin(yaw)
     n = path_s.shape[0]
+    end_s = path_s[n - 1]
+    tx, ty = path_x[n - 1] - path_x[n - 2], path_y[n - 1] - path_y[n - 2]
+    norm = math.hypot(tx, ty)
     j = max(np.searchsorted(path_s, s + offsets[0], side="right") - 1, 0)
     for i in range(offsets.shape[0]):  # offsets ascending: walk on from there
         target = s + offsets[i]
         while j + 1 < n and path_s[j + 1] <= target:
             j += 1
-        dx, dy = path_x[j] - x, path_y[j] - y
+        beyond = (target - end_s) / norm if target > end_s else 0.0
+        dx, dy = path_x[j] + beyond * tx - x, path_y[j] + beyond * ty - y
         out[i, 0] = c * dx + sn * dy
         out[i, 1] = -sn * dx + c * dy
 

@@ -83,7 +83,10 @@ class DrivingEnv(CosimEnv, EzPickle):
       `heading`, the heading relative to the route's direction of travel, in units of π rad;
     - *route_ahead (P × 2):* the route's centre line at `preview_spacing_m`, 2·`preview_spacing_m`,
       … ahead of the nearest point to the pose, in the pose's frame (x forward, y left), in
-      units of the preview's reach P·`preview_spacing_m` (bounds ±2).
+      units of the preview's reach P·`preview_spacing_m` (bounds ±2). Past the route's end
+      the points go on along its last direction, as the road does past a finish line (the
+      preview shrinking to the end point would read as a wall: the policies of `docs/envs.md`
+      "Driving at 10 Hz" stopped short of it).
 
     ## Rewards
     The total reward is: ***reward*** *=* *reward_progress + reward_cross_track +
@@ -121,7 +124,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     (`info["stalled"]`): a stalled car earns nothing, and the rest of such an episode would
     only waste samples. The scripted pure-pursuit driver of `biso_cosim.envs.baselines` earns
     342.5 on `figure8` with the dead-reckoned pose (mean over the evaluation seeds 1000–1004;
-    353.5 on the procedural routes of those seeds) and completes every one of them (tested).
+    353.6 on the procedural routes of those seeds; 343.3 and 359.1 at 10 Hz decisions) and
+    completes every one of them (tested).
 
     `info` carries each term (they sum to the reward exactly) and `distance_m`,
     `speed_limit_mps` (v_lim at the car's position),
@@ -152,7 +156,8 @@ class DrivingEnv(CosimEnv, EzPickle):
     * v0: Initial version; the speed limit of the progress reward (`speed_limit_mps`,
       `speed_limit_accel_mps2`) added (2026-12-07); the steering system's rate limit
       (`steer_rate_rad_s`) and the loss of progress beyond the limit (`overspeed_weight`)
-      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed").
+      added (2026-12-07, `docs/envs.md` "Driving: the steering's rate and the overspeed");
+      the route ahead continued past the route's end (2026-12-07, "Driving at 10 Hz").
     """
 
     ARGUMENTS = {

@@ -16,7 +16,7 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
                            "correction_scale": "log", "shaping_gamma": 0.99},
     "GainTuning": {"control_rate_hz": 10.0, "reference_action": (0.0, 0.0), "observe_attitude": False,
                    "shaping_gamma": 0.99},
-    "Driving": {"route": "random"},
+    "Driving": {"route": "random", "control_rate_hz": 10.0},
 }
 """Environment arguments besides the defaults (docs/envs.md, "Why PPO did not learn" and
 "AttitudeEstimation and GainTuning, second round", gives the evidence for each):
@@ -38,21 +38,23 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
   its heading says nothing about the gains, and the trained policies fitted them to it) and the
   shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
 * Driving: a new procedural route every episode (it is evaluated there and on ``figure8``,
-  which it never drove in training).
+  which it never drove in training), and decisions at 10 Hz (``control_rate_hz``: at 50 Hz
+  the policy's exploration noise, white from step to step, was averaged away by the
+  steering's rate limit and the car's inertia, and γ = 0.99 looked 2 s ahead, less than a
+  car at 10 m/s needs to slow for a turn; at 10 Hz a step's noise moves the road wheels by up
+  to 0.06 rad, γ = 0.99 looks 10 s ahead, and PPO completes the routes, docs/envs.md
+  "Driving at 10 Hz").
 """
 
 ALGO_OPTIONS: dict[str, dict[str, Any]] = {
     "AttitudeEstimation": {"policy_kwargs": {"log_std_init": -2.0}},
-    "Driving": {"gamma": 0.995},
 }
 """Hyperparameters besides SB3's defaults: AttitudeEstimation's residual policy starts with
 exploration noise of standard deviation e^-2 = 0.14 instead of 1, as residual policies do
 (Silver et al. 2018, Johannink et al. 2019), so that its training episodes stay near the
-estimator its zero action is; GainTuning takes SB3's defaults (its γ = 0.99 is 10 s at its
-10 Hz decisions, over which the gains' effects play out, and the shaping's γ); Driving with
-γ = 0.995 (4 s, about 30 m of road at the pursuit driver's speed) instead of 0.99 (2 s,
-less than the distance a fast car needs to slow for a turn). ``VecNormalize``
-scales the rewards with the same γ."""
+estimator its zero action is; GainTuning and Driving take SB3's defaults (γ = 0.99 is 10 s
+at their 10 Hz decisions: over it the gains' effects play out, and a car slows for a turn).
+``VecNormalize`` scales the rewards with the same γ."""
 
 
 def env_options(name: str) -> dict[str, Any]:

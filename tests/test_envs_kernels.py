@@ -284,6 +284,11 @@ def test_route_ahead_matches_index_at():
         _route_ahead(path.x_m, path.y_m, path.s_m, s, offsets, x, y, yaw, out)
         for i, d in enumerate(offsets):
             j = path.index_at(s + d)
-            dx, dy = path.x_m[j] - x, path.y_m[j] - y
+            # beyond the end: on along the last segment's direction
+            beyond = max(s + d - path.length_m, 0.0)
+            tx, ty = path.x_m[-1] - path.x_m[-2], path.y_m[-1] - path.y_m[-2]
+            px = path.x_m[j] + beyond / math.hypot(tx, ty) * tx
+            py = path.y_m[j] + beyond / math.hypot(tx, ty) * ty
+            dx, dy = px - x, py - y
             expected = (math.cos(yaw) * dx + math.sin(yaw) * dy, -math.sin(yaw) * dx + math.cos(yaw) * dy)
             assert tuple(out[i]) == expected

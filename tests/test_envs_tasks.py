@@ -788,11 +788,12 @@ def test_scripted_driver_completes_random_routes():
 EVALUATION_SEEDS = range(1000, 1005)  # benchmarks/rl_baselines.py's
 
 
-def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8():
+@pytest.mark.parametrize("control_rate_hz", [50.0, 10.0])  # the default, and the trained baselines'
+def test_pursuit_baseline_completes_every_evaluation_seed_of_figure8(control_rate_hz):
     """With the default dead-reckoned pose (the estimator's errors steer the car)."""
     from biso_cosim.envs.baselines import PursuitDriver
 
-    env = gym.make("biso_cosim/Driving-v0")
+    env = gym.make("biso_cosim/Driving-v0", control_rate_hz=control_rate_hz)
     policy = PursuitDriver(env)
     for seed in EVALUATION_SEEDS:
         total, info = run_episode(env, policy, seed)
