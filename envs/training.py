@@ -39,8 +39,8 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
   IMU samples out of it too (``observe_imu``: they change every step, the best gains are nearly a
   constant per episode, and the trained policy's mean followed them step to step) with 10 s
   statistics of the tuned estimator's innovation instead (``innovation_time_constant_s``:
-  features that change over the gains' time scale and show the part's gyro bias), and the
-  shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
+  features that change over the gains' time scale and show the part's gyro bias; docs/envs.md,
+  "GainTuning, third round"), and the shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
 * Driving: a new procedural route every episode (it is evaluated there and on ``figure8``,
   which it never drove in training).
 """
