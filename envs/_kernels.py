@@ -19,7 +19,8 @@ from biso_cosim.vehicle._kernels import S_CROSS, S_S, TRUTH_LAYOUT, _apply_contr
 __all__ = ["_scale_observation", "_inside", "_drive_action", "_tune_closed", "_push_window", "_angle", "_angles_to", "_mean_angle",
            "_mean_angles_to", "_dead_reckon", "_route_ahead", "_navigate_period", "_driving_view", "_attitude_period",
            "_tuning_period", "_driving_period", "_window_work", "_attitude_work", "_tuning_work", "_driving_work",
-           "_corrected", "_log_gains", "_innovation", "_correction_work", "_mean_error_work"]
+           "_corrected", "_log_gains", "_innovation", "_correction_work", "_mean_error_work",
+           "_innovation_statistics"]
 
 _Q0, _Q1 = TRUTH_LAYOUT.q_wb, TRUTH_LAYOUT.q_wb + 4  # a packed truth row's q_wb
 
@@ -426,3 +427,27 @@ def _mean_error_work(samples, q, arrays):
     if k:
         arrays[0][0] = _mean_angle(q[0][:k], samples.truth[:, _Q0:_Q1])
         arrays[0][1] = _angle(q[0][k - 1], samples.truth[k - 1, _Q0:_Q1])
+
+
+@jit
+def _innovation_statistics(q_tuned, q_baseline, weight, state, out):
+    """GainTuning-v0's innovation statistics after a step: the rotation vector d (rad, the tuned
+    estimate's body axes) from the tuned copy's attitude ``q_tuned`` to the baseline copy's
+    ``q_baseline`` (q_tuned ∘ exp(d) = q_baseline; any non-zero length), and exponential moving
+    averages of d and of |d|² with this ``weight`` (1 at the episode's first step: they start there):
+    state[:3] += weight·(d − state[:3]), state[3] += weight·(|d|² − state[3]);
+    out[:3] = state[:3], out[3] = √state[3]."""
+    pw, px, py, pz = _qnormalize(q_tuned[0], q_tuned[1], q_tuned[2], q_tuned[3])
+    qw, qx, qy, qz = _qnormalize(q_baseline[0], q_baseline[1], q_baseline[2], q_baseline[3])
+    d = _qmul(pw, -px, -py, -pz, qw, qx, qy, qz)
+    dx, dy, dz = _qlog_rotvec(d[0], d[1], d[2], d[3])
+    d2 = dx * dx + dy * dy + dz * dz
+    if weight >= 1.0:  # (the first step: the averages start at its values, whatever was there)
+        state[0], state[1], state[2], state[3] = dx, dy, dz, d2
+    else:
+        state[0] += weight * (dx - state[0])
+        state[1] += weight * (dy - state[1])
+        state[2] += weight * (dz - state[2])
+        state[3] += weight * (d2 - state[3])
+    out[0], out[1], out[2] = state[0], state[1], state[2]
+    out[3] = math.sqrt(max(state[3], 0.0))

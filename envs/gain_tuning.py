@@ -17,7 +17,8 @@ from biso_cosim.envs._common import (COMMON_ARGUMENTS, CosimEnv, Scale, _check_n
 from biso_cosim.envs._docs import finish_docstring
 from biso_cosim.estimators import describe_estimator, make_estimator
 from biso_cosim.estimators.biso import PAPER_K, PAPER_K_P, BisoParams, gains_from_cutoff
-from biso_cosim.envs._kernels import _angle, _angles_to, _mean_error_work, _tune_closed, _tuning_work
+from biso_cosim.envs._kernels import (_angle, _angles_to, _innovation_statistics, _mean_error_work, _tune_closed,
+                                      _tuning_work)
 from biso_cosim.routes import Route
 from biso_cosim.vehicle.sim import Truth
 
@@ -150,7 +151,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     ## Observation Space
     A bounded `Box(low, high, (9·n + 4 + m,), float32)` (`9·n + m` with `observe_attitude=False`;
-    `+9` with GNSS), scaled as in
+    without the `9·n` with `observe_imu=False`; `+4` with `innovation_time_constant_s`; `+9`
+    with GNSS), scaled as in
     `AttitudeEstimation-v0` (`observation_fields`, `observation_scale`, `split_observation`),
     in this order (`env.unwrapped.observation_structure`):
 
@@ -160,11 +162,23 @@ class GainTuningEnv(CosimEnv, EzPickle):
     - *gnss (9), only with `gnss_rate_hz`:* the newest GNSS fix as in `AttitudeEstimation-v0`;
     - *q_wb (4), unless `observe_attitude=False`:* the tuned estimator's attitude at the
       newest sample;
+    - *innovation (4), only with `innovation_time_constant_s=T`:* statistics of the rotation
+      vector d (rad, the tuned estimate's body axes) from the tuned copy's attitude to the
+      baseline copy's at the newest sample (the baseline, at the paper's 10 Hz gains, follows
+      the accelerometer+magnetometer attitude closely: d is nearly the tuned filter's
+      innovation), as exponential moving averages over the steps with the weight
+      1 − exp(−dt/T), started at the first step's value: the mean of d (`x`, `y`, `z`: a
+      sustained offset, the gyro bias over the correction gain) and the root of the mean
+      of |d|² (`rms`). They change over T rather than step to step, and tell episodes apart
+      by what sets their best gains (the part's gyro bias against the accelerometer's and
+      magnetometer's errors);
     - *gains (m):* the gains in force, as the normalised action that sets them.
 
     `observe_attitude=False` leaves the attitude out: its heading changes with the route and
     says nothing about which gains are right, and a policy trained on few episodes fits its
-    gains to it (`docs/envs.md`, "Why PPO did not learn").
+    gains to it (`docs/envs.md`, "Why PPO did not learn"). `observe_imu=False` leaves the IMU
+    samples out for the same reason: they change every step, while the best gains are nearly
+    a constant per episode (`docs/envs.md`, "GainTuning, third round").
 
     ## Rewards
     The total reward is: ***reward*** *=* *reward_attitude* *=* −(mean over the step's IMU
@@ -208,7 +222,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
 
     ## Version History
     * v0: Initial version; the gains' lag (`gain_time_constant_s`) added (2026-12-07);
-      `reference_action`, `observe_attitude` and `shaping_gamma` added (2026-12-07).
+      `reference_action`, `observe_attitude` and `shaping_gamma` added (2026-12-07);
+      `observe_imu` and `innovation_time_constant_s` added (2026-12-07).
     """
 
     ARGUMENTS = {
@@ -226,6 +241,10 @@ class GainTuningEnv(CosimEnv, EzPickle):
                             "copy of the estimator at constant gains whose mean error over each step is added to "
                             "the reward (see Rewards)",
         "observe_attitude": "include the tuned estimator's attitude (`q_wb`) in the observation",
+        "observe_imu": "include the IMU samples (`imu`) in the observation (False: the part has no columns)",
+        "innovation_time_constant_s": "None, or the time constant T > 0 (s) of the innovation statistics in the "
+                                      "observation (`innovation`: moving averages of the rotation from the tuned "
+                                      "copy's estimate to the baseline copy's, see Observation Space)",
         "shaping_gamma": "γ of the potential-based shaping term γΦ(s') − Φ(s), Φ = −(the tuned copy's angle to the "
                          "truth at the newest sample, less the reference copy's with `reference_action`)/(1 − γ), "
                          "added to the reward (see Rewards; use the learner's discount); None: no shaping",
@@ -236,7 +255,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
                  tuning: Mapping[str, tuple[float, float, str]] | None = None,
                  die_temperature_c: float | tuple[float, float] | None = (5.0, 45.0),
                  gain_time_constant_s: float = 1.0, reference_action: Sequence[float] | None = None,
-                 observe_attitude: bool = True, shaping_gamma: float | None = None,
+                 observe_attitude: bool = True, observe_imu: bool = True,
+                 innovation_time_constant_s: float | None = None, shaping_gamma: float | None = None,
                  random_route_options: Mapping[str, Any] | None = None, episode_duration_s: float | None = None,
                  sensor_profile: str = "mpu9250", sensor_noise: bool = True,
                  sensor_seed: int | None = None, registers: Mapping[str, int] | None = None,
@@ -266,6 +286,12 @@ class GainTuningEnv(CosimEnv, EzPickle):
         if not isinstance(observe_attitude, (bool, np.bool_)):
             raise TypeError(f"observe_attitude must be True or False, got {observe_attitude!r}")
         self.observe_attitude = bool(observe_attitude)
+        if not isinstance(observe_imu, (bool, np.bool_)):
+            raise ValueError(f"observe_imu must be True or False, got {observe_imu!r}")
+        self.observe_imu = bool(observe_imu)
+        self.innovation_time_constant_s = (None if innovation_time_constant_s is None else _check_number(
+            "innovation_time_constant_s", innovation_time_constant_s, low=0.0, high=3600.0, low_open=True))
+        """Time constant of the innovation statistics in the observation, s (None: not observed)."""
         self.reference_action = None if reference_action is None else self._check_reference(reference_action)
         """The normalised action of the reference copy (None: no reference copy)."""
         self.shaping_gamma = _check_shaping_gamma(shaping_gamma)
@@ -277,6 +303,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         tau = self.gain_time_constant_s
         self._lag = -math.expm1(-self.dt / tau) if tau > 0.0 else 1.0
         """The fraction of the way from the gains in force to the action that a step moves them."""
+        t_innovation = self.innovation_time_constant_s
+        self._innovation_weight = None if t_innovation is None else -math.expm1(-self.dt / t_innovation)
+        """The weight of a step's innovation in its moving averages (None: not observed)."""
         self._step_lag = 1.0  # this step's: 1 for the episode's first action
         self.ACTION_NAMES = tuple(self.tuning)
         # the action's map, a column per tuned parameter: low, high / low, high − low, 1 for a
@@ -292,9 +321,15 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._closed_values = np.empty(len(names) + 2)  # (the action's values, then k, k_p)
         m = len(self.tuning)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(m,), dtype=np.float32)
+        if not self.observe_imu:  # (the window stays, every column dropped from the observation)
+            self._dropped["imu"] = {column: range(self.imu_slots) for column in self._raw_scales["imu"]}
         if self.observe_attitude:
             self._raw_structure["q_wb"] = (4,)
             self._raw_scales["q_wb"] = {c: Scale(1.0, -1.0, 1.0, "-") for c in "wxyz"}
+        if self._innovation_weight is not None:
+            self._raw_structure["innovation"] = (4,)
+            self._raw_scales["innovation"] = {**{a: Scale(1.0, -math.pi, math.pi, "rad") for a in "xyz"},
+                                              "rms": Scale(1.0, 0.0, math.pi, "rad")}
         self._raw_structure["gains"] = (m,)
         self._raw_scales["gains"] = {name: Scale(1.0, -1.0, 1.0, "-") for name in self.tuning}
         self._set_observation_space()
@@ -317,6 +352,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._in_force: tuple[Any, dict[str, float]] = (None, {})  # see _params_in_force
         self._closed_version: int | None = None  # see reset
         self._baseline_q = self._tuned_q.copy()
+        # the innovation statistics: their moving averages (d, |d|²), and their part of the observation
+        self._innovation_state = np.zeros(4)
+        self._innovation = self._observation_parts.get("innovation", np.empty(4))
         self._errors = np.zeros(2)  # the mean errors of the tuned and the baseline copy in the last period
         self._period_samples = np.zeros(1, dtype=np.int64)  # the last period's number of samples
 
@@ -442,6 +480,8 @@ class GainTuningEnv(CosimEnv, EzPickle):
         self._gains[:] = self._initial_gains
         self._step_lag = 1.0
         self._first_period()
+        if self._innovation_weight is not None:  # (the first step's innovation starts the averages)
+            _innovation_statistics(self._tuned_q, self._baseline_q, 1.0, self._innovation_state, self._innovation)
         info.update(self._measure())
         info["params"] = self._params_in_force()
         if self.shaping_gamma is not None:
@@ -473,6 +513,9 @@ class GainTuningEnv(CosimEnv, EzPickle):
             self._sim.estimators["reference"].retune(**self._reference_changes)
             self._reference_pending = False
         self._advance()
+        if self._innovation_weight is not None:
+            _innovation_statistics(self._tuned_q, self._baseline_q, self._innovation_weight, self._innovation_state,
+                                   self._innovation)
         info = self._measure()
         info["params"] = self._params_in_force()
         reward = -info["error_rad"]

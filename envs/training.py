@@ -15,7 +15,7 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
     "AttitudeEstimation": {"action_type": "correction", "sensor_profile": "mpu9250", "gyro_calibration_s": 2.0,
                            "correction_scale": "log", "shaping_gamma": 0.99},
     "GainTuning": {"control_rate_hz": 10.0, "reference_action": (0.0, 0.0), "observe_attitude": False,
-                   "shaping_gamma": 0.99},
+                   "observe_imu": False, "innovation_time_constant_s": 10.0, "shaping_gamma": 0.99},
     "Driving": {"route": "random", "control_rate_hz": 10.0},
 }
 """Environment arguments besides the defaults (docs/envs.md, "Why PPO did not learn" and
@@ -35,8 +35,12 @@ ENV_OPTIONS: dict[str, dict[str, Any]] = {
 * GainTuning: decisions at 10 Hz (``control_rate_hz``: the gains act over seconds), the
   reference copy at the zero action's gains (``reference_action``: the part of each step's
   error any nearby tuning shares), the attitude out of the observation (``observe_attitude``:
-  its heading says nothing about the gains, and the trained policies fitted them to it) and the
-  shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
+  its heading says nothing about the gains, and the trained policies fitted them to it), the
+  IMU samples out of it too (``observe_imu``: they change every step, the best gains are nearly a
+  constant per episode, and the trained policy's mean followed them step to step) with 10 s
+  statistics of the tuned estimator's innovation instead (``innovation_time_constant_s``:
+  features that change over the gains' time scale and show the part's gyro bias; docs/envs.md,
+  "GainTuning, third round"), and the shaping with γ = 0.99 (SB3's default: 10 s at 10 Hz).
 * Driving: a new procedural route every episode (it is evaluated there and on ``figure8``,
   which it never drove in training), and decisions at 10 Hz (``control_rate_hz``: a rollout
   of 2 048 steps then holds about four episodes instead of one, the same wall time drives

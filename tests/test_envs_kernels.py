@@ -7,7 +7,7 @@ import pytest
 
 
 from biso_cosim.envs._kernels import (_angle, _angles_to, _attitude_period, _dead_reckon, _drive_action,
-                                      _driving_period, _driving_view, _mean_angle, _mean_angles_to, _navigate_period,
+                                      _driving_period, _driving_view, _innovation_statistics, _mean_angle, _mean_angles_to, _navigate_period,
                                       _push_window, _route_ahead, _scale_observation, _tune_closed,
                                       _tuning_period)
 from biso_cosim.estimators import make_estimator
@@ -292,3 +292,25 @@ def test_route_ahead_matches_index_at():
             dx, dy = px - x, py - y
             expected = (math.cos(yaw) * dx + math.sin(yaw) * dy, -math.sin(yaw) * dx + math.cos(yaw) * dy)
             assert tuple(out[i]) == expected
+
+
+def test_innovation_statistics_are_moving_averages_of_the_relative_rotation():
+    """``_innovation_statistics`` against scipy: d = (R_tuned⁻¹ R_baseline).as_rotvec() (so that
+    q_tuned ∘ exp(d) = q_baseline), then the exponential moving averages of d and |d|² in plain
+    NumPy, the first with weight 1; quaternions of any non-zero length."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    state, out = np.full(4, np.nan), np.empty(4)  # (weight 1 overwrites whatever was there)
+    mean, square = np.zeros(3), 0.0
+    for i in range(40):
+        q_tuned = rng.normal(size=4) * rng.uniform(0.5, 2.0)
+        q_baseline = q_tuned + rng.normal(scale=0.2, size=4)  # (near, as the two copies are)
+        weight = 1.0 if i == 0 else float(rng.uniform(0.01, 0.5))
+        _innovation_statistics(q_tuned, q_baseline, weight, state, out)
+        d = (Rotation.from_quat(np.roll(q_tuned, -1)).inv() * Rotation.from_quat(np.roll(q_baseline, -1))).as_rotvec()
+        mean += weight * (d - mean)
+        square += weight * (d @ d - square)
+        np.testing.assert_allclose(out[:3], mean, rtol=1e-9, atol=1e-12)
+        assert out[3] == pytest.approx(math.sqrt(square), rel=1e-9)
+        assert state.tolist()[:3] == out.tolist()[:3]

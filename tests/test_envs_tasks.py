@@ -480,6 +480,88 @@ def test_the_attitude_can_be_left_out_of_the_observation():
         gym.make("biso_cosim/GainTuning-v0", observe_attitude="no")
 
 
+def test_the_imu_samples_can_be_left_out_of_the_observation():
+    """``observe_imu=False``: the observation is the default one without the IMU window's
+    columns (the same columns otherwise, the same episode)."""
+    full = gym.make("biso_cosim/GainTuning-v0", **SHORT)
+    without = gym.make("biso_cosim/GainTuning-v0", observe_imu=False, **SHORT)
+    assert without.unwrapped.observation_structure["imu"][-1] == 0
+    kept = [i for i, f in enumerate(full.unwrapped.observation_fields) if not f.startswith("imu[")]
+    assert [full.unwrapped.observation_fields[i] for i in kept] == list(without.unwrapped.observation_fields)
+    assert len(kept) == len(full.unwrapped.observation_fields) - 9 * full.unwrapped.imu_slots
+    for a, b in zip(rollout_observations(full), rollout_observations(without)):
+        assert a[kept].tolist() == b.tolist()
+    with pytest.raises(ValueError, match="observe_imu"):
+        gym.make("biso_cosim/GainTuning-v0", observe_imu="no")
+
+
+def test_innovation_statistics_average_the_rotation_from_the_tuned_to_the_baseline_estimate():
+    """``innovation_time_constant_s=T``: the observation's ``innovation`` is the moving average,
+    weight 1 − exp(−dt/T) a step and 1 at the first, of the rotation vector d from the tuned
+    copy's attitude to the baseline copy's at the newest sample (``info``'s q_wb_tuned and
+    q_wb_baseline; tuned body axes), and the root of the average of |d|²."""
+    from scipy.spatial.transform import Rotation
+
+    def rotvec(info):
+        tuned, baseline = (Rotation.from_quat(np.roll(info[k], -1)) for k in ("q_wb_tuned", "q_wb_baseline"))
+        return (tuned.inv() * baseline).as_rotvec()
+
+    tau = 0.3
+    env = gym.make("biso_cosim/GainTuning-v0", innovation_time_constant_s=tau, **SHORT)
+    core = env.unwrapped
+    weight = 1.0 - math.exp(-core.dt / tau)
+    rng = np.random.default_rng(2)
+    obs, info = env.reset(seed=3)
+    d = rotvec(info)
+    mean, square = d, d @ d
+    largest = 0.0
+    while True:
+        part = core.split_observation(obs)["innovation"]
+        np.testing.assert_allclose(part[:3], mean, rtol=1e-5, atol=1e-7)  # (float32)
+        assert part[3] == pytest.approx(math.sqrt(square), rel=1e-5, abs=1e-7)
+        largest = max(largest, part[3])
+        obs, _, _, truncated, info = env.step(rng.uniform(-1.0, 1.0, 2))
+        d = rotvec(info)
+        mean, square = mean + weight * (d - mean), square + weight * (d @ d - square)
+        if truncated:
+            break
+    assert largest > 1e-3  # (random gains: the copies part)
+
+
+def test_innovation_statistics_are_zero_when_the_tuned_copy_has_the_baselines_gains():
+    """The tuned copy at the baseline's gains (the paper's, as a constant action) is the
+    baseline copy: the rotation between them, and so its statistics, are 0."""
+    env = gym.make("biso_cosim/GainTuning-v0", innovation_time_constant_s=1.0, **SHORT)
+    core = env.unwrapped
+    paper = core.baseline_action.astype(np.float32)
+    env.reset(seed=4)
+    while True:
+        obs, _, _, truncated, info = env.step(paper)
+        assert quat_angle_between(info["q_wb_tuned"], info["q_wb_baseline"]) < 1e-9
+        np.testing.assert_allclose(core.split_observation(obs)["innovation"], 0.0, atol=1e-8)
+        if truncated:
+            break
+
+
+def test_the_training_observation_passes_check_env():
+    """GainTuning's observation of the trained baselines (``biso_cosim.envs.training``): the
+    gains in force and the innovation statistics only."""
+    from gymnasium.utils.env_checker import check_env
+
+    from biso_cosim.envs.training import env_options
+
+    env = gym.make("biso_cosim/GainTuning-v0", **{**env_options("GainTuning"), **SHORT})
+    assert list(env.unwrapped.observation_structure) == ["imu", "innovation", "gains"]
+    assert env.observation_space.shape == (6,)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_innovation_time_constants_are_refused(value):
+    with pytest.raises(ValueError, match="innovation_time_constant_s"):
+        gym.make("biso_cosim/GainTuning-v0", innovation_time_constant_s=value)
+
+
 def rollout_observations(env, steps=20):
     env.action_space.seed(0)
     obs, _ = env.reset(seed=7)
